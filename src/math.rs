@@ -1,0 +1,280 @@
+//! Precision-generic arithmetic.
+//!
+//! Every intersection routine in [`crate::geometry`] is written once over [`Real`] and
+//! instantiated twice: `f32`, the mirror of what the WGSL shaders compute, and `f64`, the
+//! oracle the f32 results are judged against.
+
+use std::fmt::{Debug, Display};
+use std::ops::{Add, AddAssign, Div, Index, Mul, MulAssign, Neg, Sub, SubAssign};
+
+/// A floating-point scalar: `f32` (GPU mirror) or `f64` (oracle).
+pub trait Real:
+    Copy
+    + Debug
+    + Display
+    + Default
+    + PartialOrd
+    + Send
+    + Sync
+    + 'static
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + AddAssign
+    + SubAssign
+    + MulAssign
+{
+    const ZERO: Self;
+    const ONE: Self;
+    const INFINITY: Self;
+    /// Unit roundoff (half the machine epsilon): the relative error of one rounded operation.
+    const UNIT_ROUNDOFF: Self;
+    fn from_f64(v: f64) -> Self;
+    fn to_f64(self) -> f64;
+    fn sqrt(self) -> Self;
+    fn abs(self) -> Self;
+    fn is_finite(self) -> bool;
+    fn min(self, other: Self) -> Self;
+    fn max(self, other: Self) -> Self;
+    fn signum_nonzero(self) -> Self {
+        if self < Self::ZERO { -Self::ONE } else { Self::ONE }
+    }
+    /// pbrt's γ(n) = n·u / (1 − n·u), the bound on the relative error of n chained operations.
+    fn gamma(n: u32) -> Self {
+        let nu = Self::from_f64(n as f64) * Self::UNIT_ROUNDOFF;
+        nu / (Self::ONE - nu)
+    }
+}
+
+macro_rules! impl_real {
+    ($t:ty) => {
+        impl Real for $t {
+            const ZERO: Self = 0.0;
+            const ONE: Self = 1.0;
+            const INFINITY: Self = <$t>::INFINITY;
+            const UNIT_ROUNDOFF: Self = <$t>::EPSILON * 0.5;
+            #[inline(always)]
+            fn from_f64(v: f64) -> Self {
+                v as $t
+            }
+            #[inline(always)]
+            fn to_f64(self) -> f64 {
+                self as f64
+            }
+            #[inline(always)]
+            fn sqrt(self) -> Self {
+                <$t>::sqrt(self)
+            }
+            #[inline(always)]
+            fn abs(self) -> Self {
+                <$t>::abs(self)
+            }
+            #[inline(always)]
+            fn is_finite(self) -> bool {
+                <$t>::is_finite(self)
+            }
+            #[inline(always)]
+            fn min(self, other: Self) -> Self {
+                <$t>::min(self, other)
+            }
+            #[inline(always)]
+            fn max(self, other: Self) -> Self {
+                <$t>::max(self, other)
+            }
+        }
+    };
+}
+impl_real!(f32);
+impl_real!(f64);
+
+/// A 3-vector of [`Real`]s.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct V3<R> {
+    pub x: R,
+    pub y: R,
+    pub z: R,
+}
+
+impl<R: Real> V3<R> {
+    #[inline(always)]
+    pub const fn new(x: R, y: R, z: R) -> Self {
+        Self { x, y, z }
+    }
+    #[inline(always)]
+    pub fn splat(v: R) -> Self {
+        Self::new(v, v, v)
+    }
+    pub fn zero() -> Self {
+        Self::splat(R::ZERO)
+    }
+    pub fn from_f64(v: [f64; 3]) -> Self {
+        Self::new(R::from_f64(v[0]), R::from_f64(v[1]), R::from_f64(v[2]))
+    }
+    pub fn from_array(v: [R; 3]) -> Self {
+        Self::new(v[0], v[1], v[2])
+    }
+    pub fn to_array(self) -> [R; 3] {
+        [self.x, self.y, self.z]
+    }
+    pub fn to_f64(self) -> V3<f64> {
+        V3::new(self.x.to_f64(), self.y.to_f64(), self.z.to_f64())
+    }
+    /// Converts to another precision (rounding to nearest).
+    pub fn cast<S: Real>(self) -> V3<S> {
+        V3::new(
+            S::from_f64(self.x.to_f64()),
+            S::from_f64(self.y.to_f64()),
+            S::from_f64(self.z.to_f64()),
+        )
+    }
+    #[inline(always)]
+    pub fn dot(self, o: Self) -> R {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+    #[inline(always)]
+    pub fn cross(self, o: Self) -> Self {
+        Self::new(
+            self.y * o.z - self.z * o.y,
+            self.z * o.x - self.x * o.z,
+            self.x * o.y - self.y * o.x,
+        )
+    }
+    #[inline(always)]
+    pub fn length_squared(self) -> R {
+        self.dot(self)
+    }
+    #[inline(always)]
+    pub fn length(self) -> R {
+        self.dot(self).sqrt()
+    }
+    #[inline(always)]
+    pub fn normalize(self) -> Self {
+        self * (R::ONE / self.length())
+    }
+    #[inline(always)]
+    pub fn mul_elem(self, o: Self) -> Self {
+        Self::new(self.x * o.x, self.y * o.y, self.z * o.z)
+    }
+    pub fn min_elem(self, o: Self) -> Self {
+        Self::new(self.x.min(o.x), self.y.min(o.y), self.z.min(o.z))
+    }
+    pub fn max_elem(self, o: Self) -> Self {
+        Self::new(self.x.max(o.x), self.y.max(o.y), self.z.max(o.z))
+    }
+    pub fn abs(self) -> Self {
+        Self::new(self.x.abs(), self.y.abs(), self.z.abs())
+    }
+    pub fn max_component(self) -> R {
+        self.x.max(self.y).max(self.z)
+    }
+    /// Index (0, 1 or 2) of the component of largest magnitude.
+    pub fn max_abs_axis(self) -> usize {
+        let a = self.abs();
+        if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        }
+    }
+    pub fn is_finite(self) -> bool {
+        self.x.is_finite() && self.y.is_finite() && self.z.is_finite()
+    }
+}
+
+impl<R> Index<usize> for V3<R> {
+    type Output = R;
+    #[inline(always)]
+    fn index(&self, i: usize) -> &R {
+        match i {
+            0 => &self.x,
+            1 => &self.y,
+            _ => &self.z,
+        }
+    }
+}
+
+impl<R: Real> Add for V3<R> {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        Self::new(self.x + o.x, self.y + o.y, self.z + o.z)
+    }
+}
+impl<R: Real> AddAssign for V3<R> {
+    #[inline(always)]
+    fn add_assign(&mut self, o: Self) {
+        *self = *self + o;
+    }
+}
+impl<R: Real> Sub for V3<R> {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Self::new(self.x - o.x, self.y - o.y, self.z - o.z)
+    }
+}
+impl<R: Real> Neg for V3<R> {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Self::new(-self.x, -self.y, -self.z)
+    }
+}
+impl<R: Real> Mul<R> for V3<R> {
+    type Output = Self;
+    #[inline(always)]
+    fn mul(self, s: R) -> Self {
+        Self::new(self.x * s, self.y * s, self.z * s)
+    }
+}
+impl<R: Real> Div<R> for V3<R> {
+    type Output = Self;
+    #[inline(always)]
+    fn div(self, s: R) -> Self {
+        Self::new(self.x / s, self.y / s, self.z / s)
+    }
+}
+
+/// A ray p = p0 + μd (the lecture's notation). `d` is unit length wherever strahl builds a
+/// ray, so μ (called `t` in code) is the distance from p0.
+#[derive(Clone, Copy, Debug)]
+pub struct Ray<R> {
+    pub origin: V3<R>,
+    pub dir: V3<R>,
+}
+
+impl<R: Real> Ray<R> {
+    pub fn new(origin: V3<R>, dir: V3<R>) -> Self {
+        Self { origin, dir }
+    }
+    #[inline(always)]
+    pub fn at(&self, t: R) -> V3<R> {
+        self.origin + self.dir * t
+    }
+    pub fn cast<S: Real>(&self) -> Ray<S> {
+        Ray::new(self.origin.cast(), self.dir.cast())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cross_follows_the_right_hand_rule() {
+        let x = V3::<f64>::new(1.0, 0.0, 0.0);
+        let y = V3::new(0.0, 1.0, 0.0);
+        assert_eq!(x.cross(y), V3::new(0.0, 0.0, 1.0));
+        assert_eq!(y.cross(x), V3::new(0.0, 0.0, -1.0));
+    }
+
+    #[test]
+    fn gamma_bounds_grow_with_operation_count() {
+        assert!(f32::gamma(3) > f32::gamma(1));
+        assert!((f64::gamma(1) - f64::EPSILON * 0.5).abs() < 1e-30);
+    }
+}

@@ -1,0 +1,289 @@
+//! The scene flattened into per-kind primitive arrays: the layout the BVH indexes and the GPU
+//! reads (see [`crate::gpu_types`]). Polygons and meshes become triangles here.
+//!
+//! A primitive is named by a [`PrimRef`], a `u32` with the kind in its top two bits. Its order
+//! (spheres < cylinders < triangles < planes) breaks ties between hits at the same `t`, so the
+//! BVH, the brute-force loop and the GPU all return the same primitive.
+
+use crate::geometry::{Cylinder, Part, Plane, Roots, Shape, Sphere, Triangle};
+use crate::math::{Ray, Real, V3};
+use crate::scene::{Geometry, Scene};
+
+/// Which scene object, which triangle inside it, and which material a primitive carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Tag {
+    /// Index in the scene's `[[objects]]`.
+    pub object: u32,
+    /// Triangle index inside a polygon or mesh, else 0.
+    pub prim: u32,
+    pub material: u32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tagged<T> {
+    pub shape: T,
+    pub tag: Tag,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum PrimKind {
+    Sphere = 0,
+    Cylinder = 1,
+    Triangle = 2,
+    Plane = 3,
+}
+
+/// A primitive reference: kind in bits 30–31, index in its kind's array in bits 0–29.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct PrimRef(pub u32);
+
+impl PrimRef {
+    pub const INDEX_BITS: u32 = 30;
+    pub const MAX_INDEX: u32 = (1 << Self::INDEX_BITS) - 1;
+    pub fn new(kind: PrimKind, index: usize) -> Self {
+        debug_assert!(index as u64 <= Self::MAX_INDEX as u64);
+        Self(((kind as u32) << Self::INDEX_BITS) | index as u32)
+    }
+    pub fn kind(self) -> PrimKind {
+        match self.0 >> Self::INDEX_BITS {
+            0 => PrimKind::Sphere,
+            1 => PrimKind::Cylinder,
+            2 => PrimKind::Triangle,
+            _ => PrimKind::Plane,
+        }
+    }
+    pub fn index(self) -> usize {
+        (self.0 & Self::MAX_INDEX) as usize
+    }
+}
+
+/// One intersection, resolved: where, which way the surface faces, and what was hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit<R> {
+    pub t: R,
+    /// Unit geometric normal of the front face (outward for solids).
+    pub normal: V3<R>,
+    pub prim: PrimRef,
+    pub part: Part,
+    pub tag: Tag,
+    /// The ray enters a solid or meets a surface's front face (d·n < 0).
+    pub enter: bool,
+}
+
+/// The best hit so far in a nearest-hit search, with the tie rule shared by every traversal.
+#[derive(Clone, Copy, Debug)]
+pub struct Nearest<R> {
+    pub t: R,
+    pub prim: PrimRef,
+    pub part: Part,
+    pub found: bool,
+}
+
+impl<R: Real> Nearest<R> {
+    pub fn new(tmax: R) -> Self {
+        Self { t: tmax, prim: PrimRef(u32::MAX), part: Part::Surface, found: false }
+    }
+    /// Upper bound to pass to `roots`: roots at exactly `t` must still be seen for the tie
+    /// rule, so the bound is the next representable value above it.
+    #[inline]
+    pub fn search_bound(&self) -> R {
+        if self.found { next_up(self.t) } else { self.t }
+    }
+    /// Keeps the smaller `t`; at equal `t`, the smaller [`PrimRef`].
+    #[inline]
+    pub fn offer(&mut self, t: R, prim: PrimRef, part: Part) {
+        if t < self.t || (t == self.t && prim < self.prim) {
+            self.t = t;
+            self.prim = prim;
+            self.part = part;
+            self.found = true;
+        }
+    }
+}
+
+/// The next representable value above a finite `v` (the identity for ±∞).
+pub fn next_up<R: Real>(v: R) -> R {
+    let f = v.to_f64();
+    if !f.is_finite() {
+        return v;
+    }
+    if std::mem::size_of::<R>() == 4 {
+        R::from_f64((f as f32).next_up() as f64)
+    } else {
+        R::from_f64(f.next_up())
+    }
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Primitives<R> {
+    pub spheres: Vec<Tagged<Sphere<R>>>,
+    pub cylinders: Vec<Tagged<Cylinder<R>>>,
+    pub triangles: Vec<Tagged<Triangle<R>>>,
+    /// Unbounded: kept outside the BVH and tested for every ray.
+    pub planes: Vec<Tagged<Plane<R>>>,
+}
+
+impl<R: Real> Primitives<R> {
+    /// Flattens a scene, rounding its f64 geometry to `R`.
+    pub fn from_scene(scene: &Scene) -> Self {
+        let mut p = Self {
+            spheres: Vec::new(),
+            cylinders: Vec::new(),
+            triangles: Vec::with_capacity(scene.triangle_count()),
+            planes: Vec::new(),
+        };
+        for (i, obj) in scene.objects.iter().enumerate() {
+            let tag = |prim: usize| Tag { object: i as u32, prim: prim as u32, material: obj.material };
+            match &obj.geometry {
+                Geometry::Sphere(s) => p.spheres.push(Tagged { shape: s.cast(), tag: tag(0) }),
+                Geometry::Cylinder(c) => p.cylinders.push(Tagged { shape: c.cast(), tag: tag(0) }),
+                Geometry::Plane(pl) => {
+                    let mut plane = pl.cast::<R>();
+                    plane.normal = plane.normal.normalize();
+                    p.planes.push(Tagged { shape: plane, tag: tag(0) })
+                }
+                Geometry::Triangle(t) => p.triangles.push(Tagged { shape: t.cast(), tag: tag(0) }),
+                Geometry::Polygon { triangles, .. } | Geometry::Mesh { triangles, .. } => {
+                    for (k, t) in triangles.iter().enumerate() {
+                        p.triangles.push(Tagged { shape: t.cast(), tag: tag(k) });
+                    }
+                }
+            }
+        }
+        p
+    }
+
+    /// Every bounded primitive, in [`PrimRef`] order.
+    pub fn bounded_refs(&self) -> impl Iterator<Item = PrimRef> + '_ {
+        let s = (0..self.spheres.len()).map(|i| PrimRef::new(PrimKind::Sphere, i));
+        let c = (0..self.cylinders.len()).map(|i| PrimRef::new(PrimKind::Cylinder, i));
+        let t = (0..self.triangles.len()).map(|i| PrimRef::new(PrimKind::Triangle, i));
+        s.chain(c).chain(t)
+    }
+
+    pub fn plane_refs(&self) -> impl Iterator<Item = PrimRef> + '_ {
+        (0..self.planes.len()).map(|i| PrimRef::new(PrimKind::Plane, i))
+    }
+
+    pub fn bounded_count(&self) -> usize {
+        self.spheres.len() + self.cylinders.len() + self.triangles.len()
+    }
+
+    pub fn tag(&self, r: PrimRef) -> Tag {
+        let i = r.index();
+        match r.kind() {
+            PrimKind::Sphere => self.spheres[i].tag,
+            PrimKind::Cylinder => self.cylinders[i].tag,
+            PrimKind::Triangle => self.triangles[i].tag,
+            PrimKind::Plane => self.planes[i].tag,
+        }
+    }
+
+    /// The roots of one primitive in (tmin, tmax).
+    #[inline]
+    pub fn roots(&self, r: PrimRef, ray: &Ray<R>, tmin: R, tmax: R) -> Roots<R> {
+        let i = r.index();
+        match r.kind() {
+            PrimKind::Sphere => self.spheres[i].shape.roots(ray, tmin, tmax),
+            PrimKind::Cylinder => self.cylinders[i].shape.roots(ray, tmin, tmax),
+            PrimKind::Triangle => self.triangles[i].shape.roots(ray, tmin, tmax),
+            PrimKind::Plane => self.planes[i].shape.roots(ray, tmin, tmax),
+        }
+    }
+
+    /// Bounds of a bounded primitive, in f64.
+    pub fn bounds_f64(&self, r: PrimRef) -> (V3<f64>, V3<f64>) {
+        let i = r.index();
+        let b = match r.kind() {
+            PrimKind::Sphere => self.spheres[i].shape.cast::<f64>().bounds(),
+            PrimKind::Cylinder => self.cylinders[i].shape.cast::<f64>().bounds(),
+            PrimKind::Triangle => self.triangles[i].shape.cast::<f64>().bounds(),
+            PrimKind::Plane => None,
+        };
+        b.expect("planes are unbounded and never enter the BVH")
+    }
+
+    /// Resolves a root into a full hit record.
+    pub fn hit(&self, r: PrimRef, ray: &Ray<R>, t: R, part: Part) -> Hit<R> {
+        let i = r.index();
+        let normal = match r.kind() {
+            PrimKind::Sphere => self.spheres[i].shape.normal(ray, t, part),
+            PrimKind::Cylinder => self.cylinders[i].shape.normal(ray, t, part),
+            PrimKind::Triangle => self.triangles[i].shape.normal(ray, t, part),
+            PrimKind::Plane => self.planes[i].shape.normal(ray, t, part),
+        };
+        Hit { t, normal, prim: r, part, tag: self.tag(r), enter: ray.dir.dot(normal) < R::ZERO }
+    }
+
+    /// Offers every root of `r` below the current best to `best`.
+    #[inline]
+    pub fn offer_nearest(&self, r: PrimRef, ray: &Ray<R>, tmin: R, best: &mut Nearest<R>) {
+        if let Some((t, part)) = self.roots(r, ray, tmin, best.search_bound()).first() {
+            best.offer(t, r, part);
+        }
+    }
+
+    /// The nearest hit by testing every primitive: the reference the BVH must reproduce.
+    pub fn nearest_brute(&self, ray: &Ray<R>, tmin: R, tmax: R) -> Option<Hit<R>> {
+        let mut best = Nearest::new(tmax);
+        for r in self.bounded_refs().chain(self.plane_refs()) {
+            self.offer_nearest(r, ray, tmin, &mut best);
+        }
+        best.found.then(|| self.hit(best.prim, ray, best.t, best.part))
+    }
+
+    /// Every hit in (tmin, tmax) by testing every primitive, sorted by `t` then [`PrimRef`].
+    pub fn all_brute(&self, ray: &Ray<R>, tmin: R, tmax: R) -> Vec<Hit<R>> {
+        let mut hits = Vec::new();
+        for r in self.bounded_refs().chain(self.plane_refs()) {
+            self.collect_hits(r, ray, tmin, tmax, &mut hits);
+        }
+        sort_hits(&mut hits);
+        hits
+    }
+
+    pub fn collect_hits(&self, r: PrimRef, ray: &Ray<R>, tmin: R, tmax: R, out: &mut Vec<Hit<R>>) {
+        for (t, part) in self.roots(r, ray, tmin, tmax).iter() {
+            out.push(self.hit(r, ray, t, part));
+        }
+    }
+}
+
+/// Orders hits along the ray; hits at equal `t` by [`PrimRef`], then by part.
+pub fn sort_hits<R: Real>(hits: &mut [Hit<R>]) {
+    hits.sort_by(|a, b| {
+        a.t.partial_cmp(&b.t)
+            .unwrap_or(std::cmp::Ordering::Equal)
+            .then(a.prim.cmp(&b.prim))
+            .then((a.part as u8).cmp(&(b.part as u8)))
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prim_refs_order_by_kind_then_index() {
+        let a = PrimRef::new(PrimKind::Sphere, 5);
+        let b = PrimRef::new(PrimKind::Cylinder, 0);
+        let c = PrimRef::new(PrimKind::Triangle, PrimRef::MAX_INDEX as usize);
+        assert!(a < b && b < c);
+        assert_eq!((c.kind(), c.index()), (PrimKind::Triangle, PrimRef::MAX_INDEX as usize));
+    }
+
+    #[test]
+    fn nearest_breaks_ties_by_prim_ref() {
+        let mut n = Nearest::new(f32::INFINITY);
+        let (p, q) = (PrimRef::new(PrimKind::Triangle, 9), PrimRef::new(PrimKind::Triangle, 2));
+        n.offer(3.0, p, Part::Surface);
+        assert_eq!(n.search_bound(), 3.0f32.next_up());
+        n.offer(3.0, q, Part::Surface);
+        assert_eq!(n.prim, q);
+        n.offer(3.0, p, Part::Surface);
+        assert_eq!(n.prim, q, "a larger ref at the same t never replaces a smaller one");
+        n.offer(2.5, p, Part::Surface);
+        assert_eq!((n.t, n.prim), (2.5, p));
+    }
+}

@@ -1,0 +1,19 @@
+//! Errors from loading a scene: each names where (file, line, column) and what (field).
+
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The file could not be read.
+    #[error("{path}: cannot read scene file: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    /// A syntax, type or validation error at a place in the file.
+    #[error("{path}:{line}:{column}: {field}: {message}")]
+    At { path: PathBuf, line: usize, column: usize, field: String, message: String },
+    /// A problem in a mesh file an object refers to.
+    #[error("{path}:{line}:{column}: {field}: mesh {mesh}: {message}")]
+    Mesh { path: PathBuf, line: usize, column: usize, field: String, mesh: PathBuf, message: String },
+    /// The scene is valid but larger than strahl accepts.
+    #[error("{path}: {message}")]
+    TooLarge { path: PathBuf, message: String },
+}

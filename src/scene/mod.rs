@@ -1,0 +1,192 @@
+//! The scene: what a scene file describes, validated, in f64.
+//!
+//! Data flows one way: scene file ([`file`]) → [`Scene`] → flat primitive arrays
+//! ([`crate::primitives`]) → BVH ([`crate::accel`]) → a backend → image.
+
+pub mod error;
+pub mod file;
+pub mod mesh;
+pub mod polygon;
+
+pub use error::SceneError;
+
+use crate::geometry::{Cylinder, Plane, Sphere, Triangle};
+use crate::math::V3;
+use std::path::PathBuf;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    /// The viewpoint p_v.
+    pub eye: V3<f64>,
+    pub look_at: V3<f64>,
+    pub up: V3<f64>,
+    /// Vertical field of view in degrees.
+    pub fov_y: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ImageSize {
+    pub width: u32,
+    pub height: u32,
+}
+
+/// How images are formed: settings under `[render]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Longest chain of reflections/refractions followed (Whitted), ≥ 0.
+    pub max_depth: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Radiance of rays that leave the scene.
+    pub background: [f64; 3],
+    /// Constant light added to every diffuse surface, so shadows are not black.
+    pub ambient: [f64; 3],
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self { max_depth: 5, spp: 1, background: [0.05, 0.05, 0.08], ambient: [0.03, 0.03, 0.03] }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum MaterialKind {
+    Diffuse = 0,
+    Mirror = 1,
+    Dielectric = 2,
+    Emissive = 3,
+}
+
+impl MaterialKind {
+    pub const ALL: [MaterialKind; 4] = [Self::Diffuse, Self::Mirror, Self::Dielectric, Self::Emissive];
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Diffuse => "diffuse",
+            Self::Mirror => "mirror",
+            Self::Dielectric => "dielectric",
+            Self::Emissive => "emissive",
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    pub name: String,
+    pub kind: MaterialKind,
+    /// Albedo (diffuse), reflectance (mirror) or transmission tint (dielectric).
+    pub color: [f64; 3],
+    /// Index of refraction (dielectric).
+    pub ior: f64,
+    /// Emitted radiance (emissive).
+    pub radiance: [f64; 3],
+}
+
+impl Material {
+    /// The material of objects that name none.
+    pub fn default_grey() -> Self {
+        Self {
+            name: "default".into(),
+            kind: MaterialKind::Diffuse,
+            color: [0.7, 0.7, 0.7],
+            ior: 1.0,
+            radiance: [0.0; 3],
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum Light {
+    /// Radiant intensity `intensity` (W/sr per channel) from `position`; falls off as 1/r².
+    Point { position: V3<f64>, intensity: [f64; 3] },
+    /// Light travelling along the unit vector `direction`, irradiance `intensity` on a surface
+    /// facing it.
+    Directional { direction: V3<f64>, intensity: [f64; 3] },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ObjectKind {
+    Sphere,
+    Cylinder,
+    Plane,
+    Triangle,
+    Polygon,
+    Mesh,
+}
+
+impl ObjectKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Sphere => "sphere",
+            Self::Cylinder => "cylinder",
+            Self::Plane => "plane",
+            Self::Triangle => "triangle",
+            Self::Polygon => "polygon",
+            Self::Mesh => "mesh",
+        }
+    }
+}
+
+/// The geometry of one `[[objects]]` entry.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Geometry {
+    Sphere(Sphere<f64>),
+    Cylinder(Cylinder<f64>),
+    Plane(Plane<f64>),
+    Triangle(Triangle<f64>),
+    /// A planar, simple polygon and its triangulation (`prim` indexes these triangles).
+    Polygon { vertices: Vec<V3<f64>>, triangles: Vec<Triangle<f64>> },
+    /// A triangle mesh loaded from `file`, already transformed.
+    Mesh { file: PathBuf, triangles: Vec<Triangle<f64>> },
+}
+
+impl Geometry {
+    pub fn kind(&self) -> ObjectKind {
+        match self {
+            Self::Sphere(_) => ObjectKind::Sphere,
+            Self::Cylinder(_) => ObjectKind::Cylinder,
+            Self::Plane(_) => ObjectKind::Plane,
+            Self::Triangle(_) => ObjectKind::Triangle,
+            Self::Polygon { .. } => ObjectKind::Polygon,
+            Self::Mesh { .. } => ObjectKind::Mesh,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Object {
+    pub geometry: Geometry,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    pub camera: Camera,
+    pub image: ImageSize,
+    pub render: RenderSettings,
+    /// The file's materials in order, then the default grey if any object names none.
+    pub materials: Vec<Material>,
+    /// The file's `[[objects]]` in order: an object's index is its id in trace output.
+    pub objects: Vec<Object>,
+    pub lights: Vec<Light>,
+}
+
+impl Scene {
+    /// Loads and validates a scene file. Every error names the file, line, column and field.
+    pub fn load(path: impl Into<PathBuf>) -> Result<Scene, SceneError> {
+        file::load(&path.into())
+    }
+
+    /// Total triangle count over triangles, polygons and meshes.
+    pub fn triangle_count(&self) -> usize {
+        self.objects
+            .iter()
+            .map(|o| match &o.geometry {
+                Geometry::Triangle(_) => 1,
+                Geometry::Polygon { triangles, .. } | Geometry::Mesh { triangles, .. } => triangles.len(),
+                _ => 0,
+            })
+            .sum()
+    }
+}
