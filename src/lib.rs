@@ -9,3 +9,8 @@ pub mod geometry;
 pub mod math;
 pub mod primitives;
 pub mod scene;
+pub mod backend;
+pub mod gpu_types;
+pub mod image;
+pub mod render;
+pub mod query;

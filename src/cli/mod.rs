@@ -1,0 +1,49 @@
+//! Subcommands of `strahl`.
+
+mod render;
+mod trace;
+
+use clap::{Parser, Subcommand, ValueEnum};
+
+#[derive(Parser, Debug)]
+#[command(name = "strahl", version, about = "A ray tracer on WGSL compute shaders, with a CPU reference that proves it right")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Render a scene file to a PNG or EXR image.
+    Render(render::RenderArgs),
+    /// Answer ray queries from a CSV file: nearest or every intersection per ray.
+    Trace(trace::TraceArgs),
+}
+
+/// Where the work runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BackendChoice {
+    /// WGSL compute shaders through wgpu (Vulkan).
+    Gpu,
+    /// The CPU reference (f32 mirror of the GPU, rayon over all cores).
+    Cpu,
+}
+
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Render(a) => render::run(a),
+        Command::Trace(a) => trace::run(a),
+    }
+}
+
+/// A progress bar on stderr for `len` steps (hidden when stderr is not a terminal).
+pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}

@@ -1,0 +1,68 @@
+//! `strahl trace`.
+
+use super::BackendChoice;
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+use strahl::math::Real;
+use strahl::query::{HITS_HEADER, RayQuery, read_rays, write_hit_rows};
+use strahl::scene::Scene;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Precision {
+    F32,
+    F64,
+}
+
+#[derive(Args, Debug)]
+pub struct TraceArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Rays CSV: header ox,oy,oz,dx,dy,dz[,tmin,tmax].
+    #[arg(long)]
+    pub rays: PathBuf,
+    /// Hits CSV to write (default: standard output).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Every intersection along each ray, sorted by t, instead of the nearest.
+    #[arg(long)]
+    pub all: bool,
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub backend: BackendChoice,
+    /// Arithmetic of the CPU backend: f32 (the GPU's mirror) or f64 (the oracle).
+    #[arg(long, value_enum, default_value = "f32")]
+    pub precision: Precision,
+}
+
+pub fn run(a: TraceArgs) -> Result<()> {
+    let scene = Scene::load(&a.scene)?;
+    let rays = read_rays(&a.rays)?;
+    let start = Instant::now();
+    let csv = match (a.backend, a.precision) {
+        (BackendChoice::Cpu, Precision::F32) => cpu_csv::<f32>(&scene, &rays, a.all),
+        (BackendChoice::Cpu, Precision::F64) => cpu_csv::<f64>(&scene, &rays, a.all),
+        (BackendChoice::Gpu, _) => bail!("the GPU backend is not available in this build yet; use --backend cpu"),
+    };
+    let secs = start.elapsed().as_secs_f64();
+    match &a.output {
+        Some(path) => {
+            std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))?;
+            eprintln!("traced {} rays in {secs:.3} s; wrote {}", rays.len(), path.display());
+        }
+        None => std::io::stdout().write_all(csv.as_bytes())?,
+    }
+    Ok(())
+}
+
+fn cpu_csv<R: Real>(scene: &Scene, rays: &[RayQuery], all: bool) -> String {
+    let hits = strahl::backend::cpu::trace::<R>(scene, rays, all);
+    let mut out = String::with_capacity(64 * rays.len() + HITS_HEADER.len() + 1);
+    out.push_str(HITS_HEADER);
+    out.push('\n');
+    for (i, (q, h)) in rays.iter().zip(&hits).enumerate() {
+        write_hit_rows(&mut out, i, &q.ray::<R>(), h, !all);
+    }
+    out
+}

@@ -1,0 +1,209 @@
+//! The buffers the GPU reads, as `#[repr(C)]` + [`bytemuck::Pod`] structs whose layout equals
+//! the WGSL structs in `shaders/types.wgsl` (a test checks every size and offset through
+//! naga's layouter). The CPU renderer reads the same structs, so both backends shade from
+//! identical f32 data.
+//!
+//! WGSL's `vec3<f32>` is 16-byte aligned with size 12: every `[f32; 3]` here is followed by a
+//! 4-byte field that fills the rest of its 16 bytes.
+
+use crate::accel::{Bvh, BvhNode};
+use crate::primitives::{Primitives, Tagged};
+use crate::scene::{Light, Scene};
+use bytemuck::{Pod, Zeroable};
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuSphere {
+    pub center: [f32; 3],
+    pub radius: f32,
+    pub object: u32,
+    pub prim: u32,
+    pub material: u32,
+    pub _pad: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuCylinder {
+    pub p1: [f32; 3],
+    pub radius: f32,
+    pub p2: [f32; 3],
+    /// 1: closed by end caps; 0: open tube.
+    pub caps: u32,
+    pub object: u32,
+    pub prim: u32,
+    pub material: u32,
+    pub _pad: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuPlane {
+    pub point: [f32; 3],
+    pub object: u32,
+    pub normal: [f32; 3],
+    pub material: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuTriangle {
+    pub v0: [f32; 3],
+    pub object: u32,
+    pub v1: [f32; 3],
+    pub prim: u32,
+    pub v2: [f32; 3],
+    pub material: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuMaterial {
+    pub color: [f32; 3],
+    /// [`crate::scene::MaterialKind`] as u32.
+    pub kind: u32,
+    pub radiance: [f32; 3],
+    pub ior: f32,
+}
+
+pub const LIGHT_POINT: u32 = 0;
+pub const LIGHT_DIRECTIONAL: u32 = 1;
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLight {
+    /// Position (point light) or unit direction of travel (directional light).
+    pub vector: [f32; 3],
+    pub kind: u32,
+    pub intensity: [f32; 3],
+    pub _pad: u32,
+}
+
+/// Per-dispatch uniforms: the camera frame, image and tile, and render settings.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuFrame {
+    pub eye: [f32; 3],
+    pub width: u32,
+    /// Unit view direction.
+    pub forward: [f32; 3],
+    pub height: u32,
+    /// Image-plane right vector at distance 1, scaled by tan(fov_y/2)·aspect.
+    pub right: [f32; 3],
+    pub spp: u32,
+    /// Image-plane up vector at distance 1, scaled by tan(fov_y/2).
+    pub up: [f32; 3],
+    pub max_depth: u32,
+    pub background: [f32; 3],
+    pub num_planes: u32,
+    pub ambient: [f32; 3],
+    pub num_lights: u32,
+    /// First pixel (x, y) of the tile this dispatch renders.
+    pub tile_origin: [u32; 2],
+    /// Index of the first sample this pass adds (progressive rendering).
+    pub sample_base: u32,
+    /// Width of the tile (row pitch of the output buffer).
+    pub tile_width: u32,
+}
+
+/// Everything a backend needs, flattened: the layout of the GPU's storage buffers.
+#[derive(Clone, Debug, Default)]
+pub struct GpuScene {
+    pub spheres: Vec<GpuSphere>,
+    pub cylinders: Vec<GpuCylinder>,
+    pub planes: Vec<GpuPlane>,
+    pub triangles: Vec<GpuTriangle>,
+    pub nodes: Vec<BvhNode>,
+    pub prim_refs: Vec<u32>,
+    pub materials: Vec<GpuMaterial>,
+    pub lights: Vec<GpuLight>,
+}
+
+fn rgb(v: [f64; 3]) -> [f32; 3] {
+    v.map(|c| c as f32)
+}
+
+impl GpuScene {
+    pub fn new(scene: &Scene, prims: &Primitives<f32>, bvh: &Bvh) -> Self {
+        let tag = |t: &crate::primitives::Tag| (t.object, t.prim, t.material);
+        Self {
+            spheres: prims
+                .spheres
+                .iter()
+                .map(|Tagged { shape: s, tag: t }| {
+                    let (object, prim, material) = tag(t);
+                    GpuSphere { center: s.center.to_array(), radius: s.radius, object, prim, material, _pad: 0 }
+                })
+                .collect(),
+            cylinders: prims
+                .cylinders
+                .iter()
+                .map(|Tagged { shape: c, tag: t }| {
+                    let (object, prim, material) = tag(t);
+                    GpuCylinder {
+                        p1: c.p1.to_array(),
+                        radius: c.radius,
+                        p2: c.p2.to_array(),
+                        caps: c.caps as u32,
+                        object,
+                        prim,
+                        material,
+                        _pad: 0,
+                    }
+                })
+                .collect(),
+            planes: prims
+                .planes
+                .iter()
+                .map(|Tagged { shape: p, tag: t }| GpuPlane {
+                    point: p.point.to_array(),
+                    object: t.object,
+                    normal: p.normal.to_array(),
+                    material: t.material,
+                })
+                .collect(),
+            triangles: prims
+                .triangles
+                .iter()
+                .map(|Tagged { shape: tri, tag: t }| GpuTriangle {
+                    v0: tri.v[0].to_array(),
+                    object: t.object,
+                    v1: tri.v[1].to_array(),
+                    prim: t.prim,
+                    v2: tri.v[2].to_array(),
+                    material: t.material,
+                })
+                .collect(),
+            nodes: bvh.nodes.clone(),
+            prim_refs: bvh.prim_refs.iter().map(|r| r.0).collect(),
+            materials: scene
+                .materials
+                .iter()
+                .map(|m| GpuMaterial {
+                    color: rgb(m.color),
+                    kind: m.kind as u32,
+                    radiance: rgb(m.radiance),
+                    ior: m.ior as f32,
+                })
+                .collect(),
+            lights: scene
+                .lights
+                .iter()
+                .map(|l| match l {
+                    Light::Point { position, intensity } => GpuLight {
+                        vector: position.cast::<f32>().to_array(),
+                        kind: LIGHT_POINT,
+                        intensity: rgb(*intensity),
+                        _pad: 0,
+                    },
+                    Light::Directional { direction, intensity } => GpuLight {
+                        vector: direction.cast::<f32>().normalize().to_array(),
+                        kind: LIGHT_DIRECTIONAL,
+                        intensity: rgb(*intensity),
+                        _pad: 0,
+                    },
+                })
+                .collect(),
+        }
+    }
+}
