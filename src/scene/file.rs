@@ -1,0 +1,1347 @@
+//! The TOML scene file → a validated [`Scene`].
+//!
+//! The file is deserialized into the serde structs below, whose fields are `Spanned` so that
+//! every semantic check can point at the offending value. When `toml` itself fails (syntax,
+//! wrong type, unknown or missing key), the document is parsed once more into `toml`'s
+//! spanned tree to find the path of the key or value at the error's position.
+//! Every error reads `FILE:LINE:COLUMN: FIELD: message` (line and column 1-based, the column
+//! counted in characters), FIELD being a path such as `objects[2].radius`.
+
+use super::mesh::{self, Transform};
+use super::polygon;
+use super::{
+    Camera, Geometry, ImageSize, Light, Material, MaterialKind, Object, RenderSettings, Scene,
+    SceneError,
+};
+use crate::geometry::{Cylinder, Plane, Sphere, Triangle};
+use crate::math::V3;
+use serde::Deserialize;
+use std::collections::HashMap;
+use std::fmt;
+use std::ops::Range;
+use std::path::Path;
+use toml::Spanned;
+
+/// Largest accepted image side, in pixels.
+pub const MAX_IMAGE_SIDE: i64 = 16384;
+/// Largest accepted image, in pixels (8192 × 8192).
+pub const MAX_IMAGE_PIXELS: u64 = 67_108_864;
+pub const MAX_OBJECTS: usize = 1_000_000;
+pub const MAX_MATERIALS: usize = 4096;
+pub const MAX_LIGHTS: usize = 1024;
+/// Most triangles (triangles, polygons and meshes together) in one scene.
+pub const MAX_SCENE_TRIANGLES: usize = 64_000_000;
+pub const MAX_DEPTH: i64 = 64;
+pub const MAX_SPP: i64 = 65536;
+
+/// Reads and validates the scene file at `path`; relative mesh paths are resolved against
+/// the file's directory.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let base_dir = path.parent().unwrap_or(Path::new(""));
+    parse(&src, path, base_dir)
+}
+
+/// Parses and validates scene source `src`. `path` names the file in error messages only;
+/// mesh files are looked up relative to `base_dir`.
+pub fn parse(src: &str, path: &Path, base_dir: &Path) -> Result<Scene, SceneError> {
+    let cx = Cx {
+        src,
+        path,
+        base_dir,
+    };
+    let def: SceneDef = toml::from_str(src).map_err(|e| {
+        // Only on error is the document parsed again, to name the field at the error's span
+        // (a syntax error fails this parse too and is reported as such).
+        match toml::de::DeTable::parse(src) {
+            Ok(doc) => cx.toml_error(&e, Some(&doc)),
+            Err(syntax) => cx.toml_error(&syntax, None),
+        }
+    })?;
+    cx.build(def)
+}
+
+// ---------------------------------------------------------------------------------------
+// The file's shape.
+
+type SVec = Spanned<Vec<Spanned<f64>>>;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneDef {
+    camera: Spanned<CameraDef>,
+    image: Spanned<ImageDef>,
+    #[serde(default)]
+    render: Option<Spanned<RenderDef>>,
+    #[serde(default)]
+    materials: Vec<Spanned<MaterialDef>>,
+    #[serde(default)]
+    objects: Vec<Spanned<ObjectDef>>,
+    #[serde(default)]
+    lights: Vec<Spanned<LightDef>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraDef {
+    eye: SVec,
+    look_at: SVec,
+    up: SVec,
+    fov_y: Spanned<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ImageDef {
+    width: Spanned<i64>,
+    height: Spanned<i64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RenderDef {
+    max_depth: Option<Spanned<i64>>,
+    spp: Option<Spanned<i64>>,
+    background: Option<SVec>,
+    ambient: Option<SVec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialDef {
+    name: Spanned<String>,
+    #[serde(rename = "type")]
+    kind: Spanned<String>,
+    color: Option<SVec>,
+    ior: Option<Spanned<f64>>,
+    radiance: Option<SVec>,
+}
+
+/// Every key any object type has; which belong to which type is checked in `object`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectDef {
+    #[serde(rename = "type")]
+    kind: Spanned<String>,
+    material: Option<Spanned<String>>,
+    center: Option<SVec>,
+    radius: Option<Spanned<f64>>,
+    p1: Option<SVec>,
+    p2: Option<SVec>,
+    caps: Option<Spanned<bool>>,
+    point: Option<SVec>,
+    normal: Option<SVec>,
+    vertices: Option<Spanned<Vec<SVec>>>,
+    file: Option<Spanned<String>>,
+    translate: Option<SVec>,
+    scale: Option<Spanned<ScaleDef>>,
+    rotate: Option<SVec>,
+}
+
+impl ObjectDef {
+    /// The optional keys present, with their spans, in file order.
+    fn present(&self) -> Vec<(&'static str, Range<usize>)> {
+        fn s<T>(v: &Option<Spanned<T>>) -> Option<Range<usize>> {
+            v.as_ref().map(Spanned::span)
+        }
+        let mut keys: Vec<_> = [
+            ("material", s(&self.material)),
+            ("center", s(&self.center)),
+            ("radius", s(&self.radius)),
+            ("p1", s(&self.p1)),
+            ("p2", s(&self.p2)),
+            ("caps", s(&self.caps)),
+            ("point", s(&self.point)),
+            ("normal", s(&self.normal)),
+            ("vertices", s(&self.vertices)),
+            ("file", s(&self.file)),
+            ("translate", s(&self.translate)),
+            ("scale", s(&self.scale)),
+            ("rotate", s(&self.rotate)),
+        ]
+        .into_iter()
+        .filter_map(|(k, sp)| sp.map(|sp| (k, sp)))
+        .collect();
+        keys.sort_by_key(|(_, sp)| sp.start);
+        keys
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightDef {
+    #[serde(rename = "type")]
+    kind: Spanned<String>,
+    position: Option<SVec>,
+    direction: Option<SVec>,
+    intensity: Option<SVec>,
+}
+
+/// A mesh's `scale`: one number for all axes, or `[x, y, z]`.
+enum ScaleDef {
+    Uniform(f64),
+    PerAxis(Vec<Spanned<f64>>),
+}
+
+impl<'de> Deserialize<'de> for ScaleDef {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visit;
+        impl<'de> serde::de::Visitor<'de> for Visit {
+            type Value = ScaleDef;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number or an array [x, y, z]")
+            }
+            fn visit_i64<E>(self, v: i64) -> Result<ScaleDef, E> {
+                Ok(ScaleDef::Uniform(v as f64))
+            }
+            fn visit_u64<E>(self, v: u64) -> Result<ScaleDef, E> {
+                Ok(ScaleDef::Uniform(v as f64))
+            }
+            fn visit_f64<E>(self, v: f64) -> Result<ScaleDef, E> {
+                Ok(ScaleDef::Uniform(v))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<ScaleDef, A::Error> {
+                let mut out = Vec::new();
+                while let Some(x) = seq.next_element::<Spanned<f64>>()? {
+                    out.push(x);
+                }
+                Ok(ScaleDef::PerAxis(out))
+            }
+        }
+        d.deserialize_any(Visit)
+    }
+}
+
+const OBJECT_TYPES: [(&str, &[&str]); 6] = [
+    ("sphere", &["center", "radius", "material"]),
+    ("cylinder", &["p1", "p2", "radius", "caps", "material"]),
+    ("plane", &["point", "normal", "material"]),
+    ("triangle", &["vertices", "material"]),
+    ("polygon", &["vertices", "material"]),
+    (
+        "mesh",
+        &["file", "translate", "scale", "rotate", "material"],
+    ),
+];
+
+// ---------------------------------------------------------------------------------------
+// Errors and spans.
+
+struct Cx<'a> {
+    src: &'a str,
+    path: &'a Path,
+    base_dir: &'a Path,
+}
+
+type Res<T> = Result<T, SceneError>;
+
+impl Cx<'_> {
+    /// 1-based line and column (in characters) of a byte offset.
+    fn line_col(&self, offset: usize) -> (usize, usize) {
+        let mut off = offset.min(self.src.len());
+        while !self.src.is_char_boundary(off) {
+            off -= 1;
+        }
+        let before = &self.src[..off];
+        let line = before.matches('\n').count() + 1;
+        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+        let column = before[line_start..].chars().count() + 1;
+        (line, column)
+    }
+
+    fn at(
+        &self,
+        span: Range<usize>,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> SceneError {
+        let (line, column) = self.line_col(span.start);
+        SceneError::At {
+            path: self.path.to_path_buf(),
+            line,
+            column,
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    fn too_large(&self, message: String) -> SceneError {
+        SceneError::TooLarge {
+            path: self.path.to_path_buf(),
+            message,
+        }
+    }
+
+    /// A `toml` syntax or deserialization error in our format. With the parsed document, the
+    /// field is the path of the innermost key or value at the error's position.
+    fn toml_error(
+        &self,
+        e: &toml::de::Error,
+        doc: Option<&Spanned<toml::de::DeTable>>,
+    ) -> SceneError {
+        let span = e.span().unwrap_or(0..0);
+        let message = tidy_toml_message(e.message());
+        let field = match doc {
+            None => "toml".to_string(),
+            Some(doc) => {
+                let missing = message
+                    .strip_prefix("missing field `")
+                    .and_then(|m| m.split('`').next());
+                let field = if let Some(key) = missing {
+                    // The span is that of the table lacking the key (empty for the root).
+                    let mut table = None;
+                    find_table(doc.get_ref(), &span, "", &mut table);
+                    join(&table.unwrap_or_default(), key)
+                } else {
+                    let mut best: Option<(usize, usize, String)> = None;
+                    find_path(doc.get_ref(), span.start, "", &mut best);
+                    best.map(|(_, _, p)| p).unwrap_or_default()
+                };
+                if field.is_empty() {
+                    "toml".to_string()
+                } else {
+                    field
+                }
+            }
+        };
+        self.at(span, field, message)
+    }
+}
+
+fn join(path: &str, key: &str) -> String {
+    if path.is_empty() {
+        key.to_string()
+    } else {
+        format!("{path}.{key}")
+    }
+}
+
+fn contains(span: &Range<usize>, off: usize) -> bool {
+    (span.start <= off && off < span.end) || (span.start == off && span.end == off)
+}
+
+/// Records in `best` the path of the smallest key or value span holding `off` (deeper wins
+/// a tie).
+fn find_path(
+    table: &toml::de::DeTable,
+    off: usize,
+    path: &str,
+    best: &mut Option<(usize, usize, String)>,
+) {
+    for (key, value) in table {
+        let p = join(path, key.get_ref());
+        consider(key.span(), off, &p, best);
+        find_in_value(value, off, &p, best);
+    }
+}
+
+fn find_in_value(
+    value: &Spanned<toml::de::DeValue>,
+    off: usize,
+    path: &str,
+    best: &mut Option<(usize, usize, String)>,
+) {
+    consider(value.span(), off, path, best);
+    match value.get_ref() {
+        toml::de::DeValue::Table(t) => find_path(t, off, path, best),
+        toml::de::DeValue::Array(a) => {
+            for (i, v) in a.iter().enumerate() {
+                find_in_value(v, off, &format!("{path}[{i}]"), best);
+            }
+        }
+        _ => {}
+    }
+}
+
+/// The path of the (non-root) table whose span is exactly `span`.
+fn find_table(
+    table: &toml::de::DeTable,
+    span: &Range<usize>,
+    path: &str,
+    found: &mut Option<String>,
+) {
+    for (key, value) in table {
+        let p = join(path, key.get_ref());
+        find_table_in_value(value, span, &p, found);
+    }
+}
+
+fn find_table_in_value(
+    value: &Spanned<toml::de::DeValue>,
+    span: &Range<usize>,
+    path: &str,
+    found: &mut Option<String>,
+) {
+    if found.is_some() {
+        return;
+    }
+    match value.get_ref() {
+        toml::de::DeValue::Table(t) => {
+            if value.span() == *span && !span.is_empty() {
+                *found = Some(path.to_string());
+                return;
+            }
+            find_table(t, span, path, found);
+        }
+        toml::de::DeValue::Array(a) => {
+            for (i, v) in a.iter().enumerate() {
+                find_table_in_value(v, span, &format!("{path}[{i}]"), found);
+            }
+        }
+        _ => {}
+    }
+}
+
+fn consider(span: Range<usize>, off: usize, path: &str, best: &mut Option<(usize, usize, String)>) {
+    if !contains(&span, off) {
+        return;
+    }
+    let len = span.end - span.start;
+    let depth = path.matches(['.', '[']).count();
+    let better = match best {
+        None => true,
+        Some((blen, bdepth, _)) => len < *blen || (len == *blen && depth > *bdepth),
+    };
+    if better {
+        *best = Some((len, depth, path.to_string()));
+    }
+}
+
+/// Rust type names in serde's messages mean little to someone writing a scene file.
+fn tidy_toml_message(m: &str) -> String {
+    let mut m = m
+        .replace("expected f64", "expected a number")
+        .replace("expected i64", "expected an integer")
+        .replace("expected a sequence", "expected an array");
+    for name in [
+        "SceneDef",
+        "CameraDef",
+        "ImageDef",
+        "RenderDef",
+        "MaterialDef",
+        "ObjectDef",
+        "LightDef",
+    ] {
+        m = m.replace(&format!("struct {name}"), "a table");
+    }
+    m
+}
+
+fn known_list<'a>(names: impl Iterator<Item = &'a str>) -> String {
+    let v: Vec<&str> = names.collect();
+    if v.is_empty() {
+        "(none)".to_string()
+    } else {
+        v.join(", ")
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Validation.
+
+impl Cx<'_> {
+    fn number(&self, v: &Spanned<f64>, field: &str) -> Res<f64> {
+        let x = *v.get_ref();
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err(self.at(v.span(), field, format!("must be finite, got {}", num(x))))
+        }
+    }
+
+    fn vec3(&self, v: &SVec, field: &str) -> Res<V3<f64>> {
+        let comps = v.get_ref();
+        if comps.len() != 3 {
+            return Err(self.at(
+                v.span(),
+                field,
+                format!("must have 3 components [x, y, z], got {}", comps.len()),
+            ));
+        }
+        let mut out = [0.0; 3];
+        for (k, c) in comps.iter().enumerate() {
+            out[k] = self.number(c, &format!("{field}[{k}]"))?;
+        }
+        Ok(V3::from_array(out))
+    }
+
+    /// A colour or intensity: three finite components ≥ 0, and ≤ `max` if given.
+    fn rgb(&self, v: &SVec, field: &str, max: Option<f64>) -> Res<[f64; 3]> {
+        let c = self.vec3(v, field)?.to_array();
+        for (k, &x) in c.iter().enumerate() {
+            let span = v.get_ref()[k].span();
+            if x < 0.0 {
+                return Err(self.at(
+                    span,
+                    format!("{field}[{k}]"),
+                    format!("must be >= 0, got {x}"),
+                ));
+            }
+            if let Some(m) = max
+                && x > m
+            {
+                return Err(self.at(
+                    span,
+                    format!("{field}[{k}]"),
+                    format!("must be <= {m}, got {x}"),
+                ));
+            }
+        }
+        Ok(c)
+    }
+
+    /// A non-zero direction, normalised.
+    fn direction(&self, v: &SVec, field: &str) -> Res<V3<f64>> {
+        let d = self.vec3(v, field)?;
+        unit(d).ok_or_else(|| self.at(v.span(), field, "must be non-zero"))
+    }
+
+    fn int_in(&self, v: &Spanned<i64>, field: &str, lo: i64, hi: i64) -> Res<i64> {
+        let x = *v.get_ref();
+        if (lo..=hi).contains(&x) {
+            Ok(x)
+        } else {
+            Err(self.at(
+                v.span(),
+                field,
+                format!("must be an integer in {lo}..={hi}, got {x}"),
+            ))
+        }
+    }
+
+    fn build(&self, def: SceneDef) -> Res<Scene> {
+        // Sizes first, before anything is allocated for them.
+        let image = self.image(&def.image)?;
+        if def.materials.len() > MAX_MATERIALS {
+            return Err(self.too_large(format!(
+                "too many materials: {} (at most {MAX_MATERIALS})",
+                def.materials.len()
+            )));
+        }
+        if def.objects.len() > MAX_OBJECTS {
+            return Err(self.too_large(format!(
+                "too many objects: {} (at most {MAX_OBJECTS})",
+                def.objects.len()
+            )));
+        }
+        if def.lights.len() > MAX_LIGHTS {
+            return Err(self.too_large(format!(
+                "too many lights: {} (at most {MAX_LIGHTS})",
+                def.lights.len()
+            )));
+        }
+
+        let camera = self.camera(def.camera.get_ref())?;
+        let render = match &def.render {
+            Some(r) => self.render(r.get_ref())?,
+            None => RenderSettings::default(),
+        };
+
+        let mut materials = Vec::with_capacity(def.materials.len() + 1);
+        let mut by_name: HashMap<&str, usize> = HashMap::new();
+        for (i, m) in def.materials.iter().enumerate() {
+            let field = format!("materials[{i}]");
+            let mat = self.material(m, &field)?;
+            let name = m.get_ref().name.get_ref().as_str();
+            if let Some(&first) = by_name.get(name) {
+                return Err(self.at(
+                    m.get_ref().name.span(),
+                    format!("{field}.name"),
+                    format!("duplicate material name \"{name}\" (also materials[{first}])"),
+                ));
+            }
+            by_name.insert(name, i);
+            materials.push(mat);
+        }
+
+        // Check the light list before loading any mesh: it is cheap.
+        let lights = def
+            .lights
+            .iter()
+            .enumerate()
+            .map(|(i, l)| self.light(l, &format!("lights[{i}]")))
+            .collect::<Res<Vec<_>>>()?;
+
+        let default_index = materials.len() as u32;
+        let mut need_default = false;
+        let mut triangles: usize = 0;
+        let mut objects = Vec::with_capacity(def.objects.len());
+        for (i, o) in def.objects.iter().enumerate() {
+            let field = format!("objects[{i}]");
+            let geometry = self.object(o, &field)?;
+            let material = match &o.get_ref().material {
+                Some(name) => match by_name.get(name.get_ref().as_str()) {
+                    Some(&m) => m as u32,
+                    None => {
+                        return Err(self.at(
+                            name.span(),
+                            format!("{field}.material"),
+                            format!(
+                                "unknown material \"{}\"; known: {}",
+                                name.get_ref(),
+                                known_list(materials.iter().map(|m: &Material| m.name.as_str()))
+                            ),
+                        ));
+                    }
+                },
+                None => {
+                    need_default = true;
+                    default_index
+                }
+            };
+            triangles += match &geometry {
+                Geometry::Triangle(_) => 1,
+                Geometry::Polygon { triangles, .. } | Geometry::Mesh { triangles, .. } => {
+                    triangles.len()
+                }
+                _ => 0,
+            };
+            if triangles > MAX_SCENE_TRIANGLES {
+                return Err(self.too_large(format!(
+                    "the scene has more than {MAX_SCENE_TRIANGLES} triangles (reached at {field})"
+                )));
+            }
+            objects.push(Object { geometry, material });
+        }
+        if need_default {
+            materials.push(Material::default_grey());
+        }
+
+        Ok(Scene {
+            camera,
+            image,
+            render,
+            materials,
+            objects,
+            lights,
+        })
+    }
+
+    fn image(&self, im: &Spanned<ImageDef>) -> Res<ImageSize> {
+        let d = im.get_ref();
+        let w = self.int_in(&d.width, "image.width", 1, MAX_IMAGE_SIDE)?;
+        let h = self.int_in(&d.height, "image.height", 1, MAX_IMAGE_SIDE)?;
+        let pixels = (w as u64) * (h as u64);
+        if pixels > MAX_IMAGE_PIXELS {
+            return Err(self.at(
+                im.span(),
+                "image",
+                format!("{w} × {h} = {pixels} pixels exceeds the limit of {MAX_IMAGE_PIXELS}"),
+            ));
+        }
+        Ok(ImageSize {
+            width: w as u32,
+            height: h as u32,
+        })
+    }
+
+    fn camera(&self, c: &CameraDef) -> Res<Camera> {
+        let eye = self.vec3(&c.eye, "camera.eye")?;
+        let look_at = self.vec3(&c.look_at, "camera.look_at")?;
+        let up = self.vec3(&c.up, "camera.up")?;
+        let fov_y = self.number(&c.fov_y, "camera.fov_y")?;
+        if !(fov_y > 0.0 && fov_y < 180.0) {
+            return Err(self.at(
+                c.fov_y.span(),
+                "camera.fov_y",
+                format!("must be in (0, 180) degrees, got {fov_y}"),
+            ));
+        }
+        let view = look_at - eye;
+        if !view.is_finite() {
+            return Err(self.at(
+                c.look_at.span(),
+                "camera.look_at",
+                "is too far from eye (overflow)",
+            ));
+        }
+        let Some(view) = unit(view) else {
+            return Err(self.at(c.look_at.span(), "camera.look_at", "must differ from eye"));
+        };
+        let Some(u) = unit(up) else {
+            return Err(self.at(c.up.span(), "camera.up", "must be non-zero"));
+        };
+        if u.cross(view).length() <= 1e-9 {
+            return Err(self.at(
+                c.up.span(),
+                "camera.up",
+                "must not be parallel to the view direction (look_at - eye)",
+            ));
+        }
+        Ok(Camera {
+            eye,
+            look_at,
+            up,
+            fov_y,
+        })
+    }
+
+    fn render(&self, r: &RenderDef) -> Res<RenderSettings> {
+        let mut s = RenderSettings::default();
+        if let Some(v) = &r.max_depth {
+            s.max_depth = self.int_in(v, "render.max_depth", 0, MAX_DEPTH)? as u32;
+        }
+        if let Some(v) = &r.spp {
+            s.spp = self.int_in(v, "render.spp", 1, MAX_SPP)? as u32;
+        }
+        if let Some(v) = &r.background {
+            s.background = self.rgb(v, "render.background", None)?;
+        }
+        if let Some(v) = &r.ambient {
+            s.ambient = self.rgb(v, "render.ambient", None)?;
+        }
+        Ok(s)
+    }
+
+    fn material(&self, m: &Spanned<MaterialDef>, field: &str) -> Res<Material> {
+        let d = m.get_ref();
+        let name = d.name.get_ref();
+        if name.is_empty() {
+            return Err(self.at(d.name.span(), format!("{field}.name"), "must not be empty"));
+        }
+        let tname = d.kind.get_ref().as_str();
+        let Some(kind) = MaterialKind::ALL.into_iter().find(|k| k.name() == tname) else {
+            return Err(self.at(
+                d.kind.span(),
+                format!("{field}.type"),
+                format!(
+                    "unknown material type \"{tname}\"; known: {}",
+                    known_list(MaterialKind::ALL.iter().map(|k| k.name()))
+                ),
+            ));
+        };
+        let not_a_field = |key: &str, span: Range<usize>| {
+            self.at(
+                span,
+                format!("{field}.{key}"),
+                format!("not a field of a {tname} material"),
+            )
+        };
+        if kind != MaterialKind::Dielectric
+            && let Some(ior) = &d.ior
+        {
+            return Err(not_a_field("ior", ior.span()));
+        }
+        if kind != MaterialKind::Emissive
+            && let Some(r) = &d.radiance
+        {
+            return Err(not_a_field("radiance", r.span()));
+        }
+        let (default_color, max) = match kind {
+            MaterialKind::Dielectric => ([1.0; 3], Some(1.0)),
+            MaterialKind::Emissive => ([0.7; 3], None),
+            _ => ([0.7; 3], Some(1.0)),
+        };
+        let color = match &d.color {
+            Some(c) => self.rgb(c, &format!("{field}.color"), max)?,
+            None => default_color,
+        };
+        let mut ior = 1.0;
+        if kind == MaterialKind::Dielectric {
+            ior = 1.5;
+            if let Some(v) = &d.ior {
+                ior = self.number(v, &format!("{field}.ior"))?;
+                if ior <= 0.0 {
+                    return Err(self.at(
+                        v.span(),
+                        format!("{field}.ior"),
+                        format!("must be > 0 and finite, got {ior}"),
+                    ));
+                }
+            }
+        }
+        let mut radiance = [0.0; 3];
+        if kind == MaterialKind::Emissive {
+            let Some(r) = &d.radiance else {
+                return Err(self.at(
+                    m.span(),
+                    format!("{field}.radiance"),
+                    "missing (an emissive material needs radiance)",
+                ));
+            };
+            radiance = self.rgb(r, &format!("{field}.radiance"), None)?;
+        }
+        Ok(Material {
+            name: name.clone(),
+            kind,
+            color,
+            ior,
+            radiance,
+        })
+    }
+
+    fn light(&self, l: &Spanned<LightDef>, field: &str) -> Res<Light> {
+        let d = l.get_ref();
+        let tname = d.kind.get_ref().as_str();
+        let require = |v: &Option<SVec>, key: &str| -> Res<SVec> {
+            v.clone().ok_or_else(|| {
+                self.at(
+                    l.span(),
+                    format!("{field}.{key}"),
+                    format!("missing (a {tname} light needs {key})"),
+                )
+            })
+        };
+        let not_a_field = |key: &str, span: Range<usize>| {
+            self.at(
+                span,
+                format!("{field}.{key}"),
+                format!("not a field of a {tname} light"),
+            )
+        };
+        let intensity = |this: &Self| -> Res<[f64; 3]> {
+            this.rgb(
+                &require(&d.intensity, "intensity")?,
+                &format!("{field}.intensity"),
+                None,
+            )
+        };
+        match tname {
+            "point" => {
+                if let Some(v) = &d.direction {
+                    return Err(not_a_field("direction", v.span()));
+                }
+                let position = self.vec3(
+                    &require(&d.position, "position")?,
+                    &format!("{field}.position"),
+                )?;
+                Ok(Light::Point {
+                    position,
+                    intensity: intensity(self)?,
+                })
+            }
+            "directional" => {
+                if let Some(v) = &d.position {
+                    return Err(not_a_field("position", v.span()));
+                }
+                let direction = self.direction(
+                    &require(&d.direction, "direction")?,
+                    &format!("{field}.direction"),
+                )?;
+                Ok(Light::Directional {
+                    direction,
+                    intensity: intensity(self)?,
+                })
+            }
+            _ => Err(self.at(
+                d.kind.span(),
+                format!("{field}.type"),
+                format!("unknown light type \"{tname}\"; known: point, directional"),
+            )),
+        }
+    }
+
+    fn object(&self, o: &Spanned<ObjectDef>, field: &str) -> Res<Geometry> {
+        let d = o.get_ref();
+        let tname = d.kind.get_ref().as_str();
+        let Some((_, allowed)) = OBJECT_TYPES.iter().find(|(t, _)| *t == tname) else {
+            return Err(self.at(
+                d.kind.span(),
+                format!("{field}.type"),
+                format!(
+                    "unknown object type \"{tname}\"; known: {}",
+                    known_list(OBJECT_TYPES.iter().map(|(t, _)| *t))
+                ),
+            ));
+        };
+        for (key, span) in d.present() {
+            if !allowed.contains(&key) {
+                return Err(self.at(
+                    span,
+                    format!("{field}.{key}"),
+                    format!(
+                        "not a field of a {tname} (its fields: type, {})",
+                        allowed.join(", ")
+                    ),
+                ));
+            }
+        }
+        let f = |key: &str| format!("{field}.{key}");
+        let missing = |key: &str| {
+            let needs: Vec<&str> = allowed
+                .iter()
+                .copied()
+                .filter(|k| !matches!(*k, "material" | "caps" | "translate" | "scale" | "rotate"))
+                .collect();
+            self.at(
+                o.span(),
+                f(key),
+                format!("missing (a {tname} needs {})", needs.join(", ")),
+            )
+        };
+        let req_vec = |v: &Option<SVec>, key: &str| -> Res<V3<f64>> {
+            match v {
+                Some(v) => self.vec3(v, &f(key)),
+                None => Err(missing(key)),
+            }
+        };
+        let radius = || -> Res<f64> {
+            let Some(r) = &d.radius else {
+                return Err(missing("radius"));
+            };
+            let x = self.number(r, &f("radius"))?;
+            if x > 0.0 {
+                Ok(x)
+            } else {
+                Err(self.at(
+                    r.span(),
+                    f("radius"),
+                    format!("must be > 0 and finite, got {x}"),
+                ))
+            }
+        };
+        let vertices = || -> Res<(Vec<V3<f64>>, Range<usize>)> {
+            let Some(vs) = &d.vertices else {
+                return Err(missing("vertices"));
+            };
+            let pts = vs
+                .get_ref()
+                .iter()
+                .enumerate()
+                .map(|(k, v)| self.vec3(v, &format!("{}[{k}]", f("vertices"))))
+                .collect::<Res<Vec<_>>>()?;
+            Ok((pts, vs.span()))
+        };
+        match tname {
+            "sphere" => {
+                let center = req_vec(&d.center, "center")?;
+                let radius = radius()?;
+                Ok(Geometry::Sphere(Sphere { center, radius }))
+            }
+            "cylinder" => {
+                let p1 = req_vec(&d.p1, "p1")?;
+                let p2 = req_vec(&d.p2, "p2")?;
+                let radius = radius()?;
+                let axis = p2 - p1;
+                let p2_span = d.p2.as_ref().map_or(o.span(), Spanned::span);
+                if axis == V3::zero() {
+                    return Err(self.at(
+                        p2_span,
+                        f("p2"),
+                        "must differ from p1 (the cylinder has no axis)",
+                    ));
+                }
+                if !axis.is_finite() {
+                    return Err(self.at(p2_span, f("p2"), "is too far from p1 (overflow)"));
+                }
+                let caps = d.caps.as_ref().is_none_or(|c| *c.get_ref());
+                Ok(Geometry::Cylinder(Cylinder {
+                    p1,
+                    p2,
+                    radius,
+                    caps,
+                }))
+            }
+            "plane" => {
+                let point = req_vec(&d.point, "point")?;
+                let Some(n) = &d.normal else {
+                    return Err(missing("normal"));
+                };
+                let normal = self.direction(n, &f("normal"))?;
+                Ok(Geometry::Plane(Plane { point, normal }))
+            }
+            "triangle" => {
+                let (v, span) = vertices()?;
+                if v.len() != 3 {
+                    return Err(self.at(
+                        span,
+                        f("vertices"),
+                        format!("a triangle needs exactly 3 vertices, got {}", v.len()),
+                    ));
+                }
+                let longest = (v[1] - v[0])
+                    .length_squared()
+                    .max((v[2] - v[1]).length_squared())
+                    .max((v[0] - v[2]).length_squared());
+                let cross = (v[1] - v[0]).cross(v[2] - v[0]).length();
+                if !longest.is_finite() || !cross.is_finite() {
+                    return Err(self.at(
+                        span,
+                        f("vertices"),
+                        "the triangle is too large (overflow)",
+                    ));
+                }
+                if cross.is_nan() || cross <= 1e-12 * longest {
+                    return Err(self.at(
+                        span,
+                        f("vertices"),
+                        "degenerate triangle: its vertices are collinear",
+                    ));
+                }
+                Ok(Geometry::Triangle(Triangle {
+                    v: [v[0], v[1], v[2]],
+                }))
+            }
+            "polygon" => {
+                let (vertices, span) = vertices()?;
+                let triangles =
+                    polygon::triangulate(&vertices).map_err(|m| self.at(span, f("vertices"), m))?;
+                Ok(Geometry::Polygon {
+                    vertices,
+                    triangles,
+                })
+            }
+            "mesh" => {
+                let Some(file) = &d.file else {
+                    return Err(missing("file"));
+                };
+                if file.get_ref().is_empty() {
+                    return Err(self.at(file.span(), f("file"), "must not be empty"));
+                }
+                let mut t = Transform::default();
+                if let Some(v) = &d.translate {
+                    t.translate = self.vec3(v, &f("translate"))?.to_array();
+                }
+                if let Some(v) = &d.rotate {
+                    t.rotate_deg = self.vec3(v, &f("rotate"))?.to_array();
+                }
+                if let Some(s) = &d.scale {
+                    t.scale = self.scale(s, &f("scale"))?;
+                }
+                let mesh_path = self.base_dir.join(file.get_ref());
+                let triangles = mesh::load_obj(&mesh_path, &t).map_err(|message| {
+                    let (line, column) = self.line_col(file.span().start);
+                    SceneError::Mesh {
+                        path: self.path.to_path_buf(),
+                        line,
+                        column,
+                        field: f("file"),
+                        mesh: mesh_path.clone(),
+                        message,
+                    }
+                })?;
+                Ok(Geometry::Mesh {
+                    file: mesh_path,
+                    triangles,
+                })
+            }
+            _ => unreachable!("object types are checked above"),
+        }
+    }
+
+    fn scale(&self, s: &Spanned<ScaleDef>, field: &str) -> Res<[f64; 3]> {
+        let check = |x: f64, span: Range<usize>, field: &str| -> Res<f64> {
+            if !x.is_finite() {
+                Err(self.at(span, field, format!("must be finite, got {}", num(x))))
+            } else if x == 0.0 {
+                Err(self.at(span, field, "must be non-zero and finite, got 0"))
+            } else {
+                Ok(x)
+            }
+        };
+        match s.get_ref() {
+            ScaleDef::Uniform(x) => {
+                let x = check(*x, s.span(), field)?;
+                Ok([x; 3])
+            }
+            ScaleDef::PerAxis(v) => {
+                if v.len() != 3 {
+                    return Err(self.at(
+                        s.span(),
+                        field,
+                        format!(
+                            "must be a number or have 3 components [x, y, z], got {}",
+                            v.len()
+                        ),
+                    ));
+                }
+                let mut out = [0.0; 3];
+                for (k, c) in v.iter().enumerate() {
+                    out[k] = check(*c.get_ref(), c.span(), &format!("{field}[{k}]"))?;
+                }
+                Ok(out)
+            }
+        }
+    }
+}
+
+/// A number as TOML spells it (`nan`, not Rust's `NaN`).
+fn num(x: f64) -> String {
+    if x.is_nan() {
+        "nan".to_string()
+    } else {
+        x.to_string()
+    }
+}
+
+/// v / |v|, computed without overflow; None for the zero vector.
+fn unit(v: V3<f64>) -> Option<V3<f64>> {
+    let m = v.abs().max_component();
+    if m.is_nan() || m <= 0.0 || !m.is_finite() {
+        return None;
+    }
+    let w = v / m;
+    Some(w / w.length())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    const HEAD: &str = "[camera]\neye = [0, 0, -10]\nlook_at = [0, 0, 0]\nup = [0, 1, 0]\nfov_y = 45\n\
+                        [image]\nwidth = 64\nheight = 48\n";
+
+    fn parse_str(src: &str) -> Result<Scene, SceneError> {
+        parse(src, Path::new("t.toml"), Path::new("."))
+    }
+
+    fn err(src: &str) -> String {
+        match parse_str(src) {
+            Ok(_) => panic!("expected an error for\n{src}"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn minimal_scene_with_defaults() {
+        let s = parse_str(HEAD).unwrap();
+        assert_eq!(
+            s.image,
+            ImageSize {
+                width: 64,
+                height: 48
+            }
+        );
+        assert_eq!(s.render, RenderSettings::default());
+        assert!(s.objects.is_empty() && s.materials.is_empty() && s.lights.is_empty());
+        assert_eq!(s.camera.fov_y, 45.0);
+    }
+
+    #[test]
+    fn integers_are_accepted_as_floats_and_default_material_appended() {
+        let src = format!(
+            "{HEAD}[[materials]]\nname = \"red\"\ntype = \"diffuse\"\ncolor = [1, 0, 0]\n\
+             [[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 8]\nradius = 5\n\
+             [[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 8]\nradius = 1\nmaterial = \"red\"\n\
+             [[lights]]\ntype = \"directional\"\ndirection = [0, -2, 0]\nintensity = [1, 1, 1]\n"
+        );
+        let s = parse_str(&src).unwrap();
+        assert_eq!(s.materials.len(), 2);
+        assert_eq!(s.materials[1], Material::default_grey());
+        assert_eq!(s.objects[0].material, 1);
+        assert_eq!(s.objects[1].material, 0);
+        assert_eq!(
+            s.objects[0].geometry,
+            Geometry::Sphere(Sphere {
+                center: V3::new(0.0, 0.0, 8.0),
+                radius: 5.0
+            })
+        );
+        assert_eq!(
+            s.lights[0],
+            Light::Directional {
+                direction: V3::new(0.0, -1.0, 0.0),
+                intensity: [1.0; 3]
+            }
+        );
+    }
+
+    #[test]
+    fn errors_point_at_the_value() {
+        let src =
+            format!("{HEAD}[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 8]\nradius = -1\n");
+        let e = err(&src);
+        assert_eq!(
+            e,
+            "t.toml:12:10: objects[0].radius: must be > 0 and finite, got -1"
+        );
+        let src =
+            format!("{HEAD}[[objects]]\ntype = \"sphere\"\ncenter = [0, inf, 8]\nradius = 1\n");
+        assert_eq!(
+            err(&src),
+            "t.toml:11:14: objects[0].center[1]: must be finite, got inf"
+        );
+    }
+
+    #[test]
+    fn toml_errors_name_the_field() {
+        let e = err(&format!(
+            "{HEAD}[[objects]]\ntype = \"sphere\"\nradiuss = 1\n"
+        ));
+        assert!(
+            e.starts_with("t.toml:11:1: objects[0].radiuss: unknown field `radiuss`"),
+            "{e}"
+        );
+        let e = err(&format!(
+            "{HEAD}[[objects]]\ntype = \"sphere\"\nradius = \"big\"\n"
+        ));
+        assert!(
+            e.starts_with("t.toml:11:10: objects[0].radius: invalid type"),
+            "{e}"
+        );
+        assert!(e.contains("expected a number"), "{e}");
+        let e = err("[image]\nwidth = 1\nheight = 1\n");
+        assert!(
+            e.starts_with("t.toml:1:1: camera: missing field `camera`"),
+            "{e}"
+        );
+        let e = err(&format!("{HEAD}[[objects]]\nradius = 1\n"));
+        assert!(
+            e.starts_with("t.toml:9:1: objects[0].type: missing field `type`"),
+            "{e}"
+        );
+        let e = err("[camera\n");
+        assert!(e.starts_with("t.toml:1:"), "{e}");
+        assert!(e.contains(": toml: "), "{e}");
+        let e = err(&format!("{HEAD}[camera]\n"));
+        assert!(e.contains("t.toml:9:"), "{e}");
+    }
+
+    #[test]
+    fn column_counts_characters() {
+        let src = format!(
+            "# äöü\n{HEAD}[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 8]\nradius = 0 # ü\n"
+        );
+        assert!(err(&src).starts_with("t.toml:13:10: objects[0].radius"));
+        let src = format!("{HEAD}[[materials]]\nname = \"ü\"\ntype = \"glass\"\n");
+        assert!(err(&src).starts_with("t.toml:11:8: materials[0].type: unknown material type"));
+    }
+
+    #[test]
+    fn field_not_of_the_type() {
+        let e = err(&format!(
+            "{HEAD}[[objects]]\ntype = \"triangle\"\nvertices = [[0,0,0],[1,0,0],[0,1,0]]\nradius = 1\n"
+        ));
+        assert!(
+            e.contains("objects[0].radius: not a field of a triangle"),
+            "{e}"
+        );
+        let e = err(&format!(
+            "{HEAD}[[materials]]\nname = \"m\"\ntype = \"diffuse\"\nior = 1.3\n"
+        ));
+        assert!(
+            e.contains("materials[0].ior: not a field of a diffuse material"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn mesh_scale_forms() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("t.obj"),
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
+        let go = |scale: &str| {
+            let src =
+                format!("{HEAD}[[objects]]\ntype = \"mesh\"\nfile = \"t.obj\"\nscale = {scale}\n");
+            parse(&src, Path::new("t.toml"), dir.path())
+        };
+        let s = go("2").unwrap();
+        let Geometry::Mesh { triangles, file } = &s.objects[0].geometry else {
+            panic!()
+        };
+        assert_eq!(triangles[0].v[1], V3::new(2.0, 0.0, 0.0));
+        assert_eq!(file, &dir.path().join("t.obj"));
+        let s = go("[1, 3, 1.5]").unwrap();
+        let Geometry::Mesh { triangles, .. } = &s.objects[0].geometry else {
+            panic!()
+        };
+        assert_eq!(triangles[0].v[2], V3::new(0.0, 3.0, 0.0));
+        assert!(
+            go("0")
+                .unwrap_err()
+                .to_string()
+                .contains("objects[0].scale: must be non-zero")
+        );
+        assert!(
+            go("[1, 0, 1]")
+                .unwrap_err()
+                .to_string()
+                .contains("objects[0].scale[1]: must be non-zero")
+        );
+        assert!(
+            go("[1, 1]")
+                .unwrap_err()
+                .to_string()
+                .contains("objects[0].scale: must be a number or have 3")
+        );
+        assert!(
+            go("\"x\"")
+                .unwrap_err()
+                .to_string()
+                .contains("objects[0].scale: invalid type")
+        );
+    }
+
+    fn manifest() -> PathBuf {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    }
+
+    /// Every prefix of the seed scene parses to Ok or Err, never a panic. The mesh is swapped
+    /// for a small one so the successful prefixes stay quick.
+    #[test]
+    fn truncated_seed_scene_never_panics() {
+        let src = std::fs::read_to_string(manifest().join("assets/scenes/seed.toml")).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let scenes = dir.path().join("scenes");
+        let meshes = dir.path().join("meshes");
+        std::fs::create_dir_all(&scenes).unwrap();
+        std::fs::create_dir_all(&meshes).unwrap();
+        std::fs::copy(
+            manifest().join("assets/meshes/cube.obj"),
+            meshes.join("bumpy_torus.obj"),
+        )
+        .unwrap();
+        let path = scenes.join("seed.toml");
+        let mut ok = 0;
+        for end in 0..=src.len() {
+            if !src.is_char_boundary(end) {
+                continue;
+            }
+            match parse(&src[..end], &path, &scenes) {
+                Ok(_) => ok += 1,
+                Err(e) => assert!(e.to_string().starts_with(&path.display().to_string())),
+            }
+        }
+        assert!(parse(&src, &path, &scenes).is_ok());
+        assert!(ok >= 1);
+    }
+
+    /// Junk in place of each line, and each byte replaced by a few others: no panics either.
+    #[test]
+    fn mangled_seed_scene_never_panics() {
+        let src = std::fs::read_to_string(manifest().join("assets/scenes/seed.toml")).unwrap();
+        let nowhere = Path::new("/nonexistent");
+        let junk = [
+            "",
+            "=",
+            "[",
+            "]]",
+            "\"",
+            "x = 1",
+            "nan",
+            "-inf",
+            "[[objects]]",
+            "1e400",
+            "{",
+            "'''",
+        ];
+        let lines: Vec<&str> = src.lines().collect();
+        for i in 0..lines.len() {
+            for j in junk {
+                let mut l = lines.clone();
+                l[i] = j;
+                let _ = parse(&l.join("\n"), Path::new("m.toml"), nowhere);
+            }
+        }
+        let bytes = src.as_bytes();
+        for i in 0..bytes.len() {
+            for b in [b'0', b'-', b'"', b']', b'n', b'\n', b'.'] {
+                let mut m = bytes.to_vec();
+                m[i] = b;
+                if let Ok(m) = std::str::from_utf8(&m) {
+                    let _ = parse(m, Path::new("m.toml"), nowhere);
+                }
+            }
+        }
+    }
+}

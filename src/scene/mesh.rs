@@ -1,0 +1,347 @@
+//! Triangle meshes: OBJ loading (through `tobj`), placement transforms, and the seed
+//! scene's procedural bumpy torus.
+
+use crate::geometry::Triangle;
+use crate::math::V3;
+use std::io::{BufReader, Write};
+use std::path::Path;
+
+/// The most triangles one mesh file may hold.
+pub const MAX_MESH_TRIANGLES: usize = 16_000_000;
+
+/// Placement of a mesh: scale, then rotate about X, then Y, then Z (degrees, right-handed),
+/// then translate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transform {
+    pub translate: [f64; 3],
+    pub scale: [f64; 3],
+    pub rotate_deg: [f64; 3],
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Self {
+            translate: [0.0; 3],
+            scale: [1.0; 3],
+            rotate_deg: [0.0; 3],
+        }
+    }
+}
+
+impl Transform {
+    pub fn apply(&self, p: V3<f64>) -> V3<f64> {
+        let [sx, sy, sz] = self.scale;
+        let (mut x, mut y, mut z) = (p.x * sx, p.y * sy, p.z * sz);
+        let [rx, ry, rz] = self.rotate_deg;
+        if rx != 0.0 {
+            let (s, c) = rx.to_radians().sin_cos();
+            (y, z) = (c * y - s * z, s * y + c * z);
+        }
+        if ry != 0.0 {
+            let (s, c) = ry.to_radians().sin_cos();
+            (x, z) = (c * x + s * z, -s * x + c * z);
+        }
+        if rz != 0.0 {
+            let (s, c) = rz.to_radians().sin_cos();
+            (x, y) = (c * x - s * y, s * x + c * y);
+        }
+        let [tx, ty, tz] = self.translate;
+        V3::new(x + tx, y + ty, z + tz)
+    }
+
+    /// Whether the transform mirrors space (an odd number of negative scale factors), which
+    /// reverses the winding of every triangle.
+    pub fn mirrors(&self) -> bool {
+        self.scale[0] * self.scale[1] * self.scale[2] < 0.0
+    }
+}
+
+/// Loads every face of every model in an OBJ file as triangles (polygons are fanned by
+/// tobj), placed by `transform`. A mirroring transform (negative scale product) swaps
+/// each triangle's last two vertices so front faces stay front faces.
+pub fn load_obj(path: &Path, transform: &Transform) -> Result<Vec<Triangle<f64>>, String> {
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
+    let mut reader = BufReader::new(file);
+    // The struct update keeps this compiling if tobj's optional fields are switched on.
+    #[allow(clippy::needless_update)]
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    // Materials are not ours to read: refuse every mtllib instead of opening it. tobj indexes
+    // with unchecked arithmetic in a few places (overflowing relative indices), so a panic in
+    // it is turned into an error too.
+    let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        tobj::load_obj_buf(&mut reader, &options, |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        })
+    }));
+    let models = match loaded {
+        Ok(Ok((models, _materials))) => models,
+        Ok(Err(e)) => return Err(format!("OBJ parse error: {e}")),
+        Err(_) => return Err("OBJ parse error: malformed file".into()),
+    };
+
+    let mut count: usize = 0;
+    for m in &models {
+        if m.mesh.indices.len() % 3 != 0 {
+            return Err(format!(
+                "model {:?}: face index count is not a multiple of 3",
+                m.name
+            ));
+        }
+        count = count.saturating_add(m.mesh.indices.len() / 3);
+    }
+    if count == 0 {
+        return Err("no faces".into());
+    }
+    if count > MAX_MESH_TRIANGLES {
+        return Err(format!(
+            "{count} triangles exceed the limit of {MAX_MESH_TRIANGLES}"
+        ));
+    }
+
+    let mirror = transform.mirrors();
+    let mut tris = Vec::with_capacity(count);
+    for m in &models {
+        let pos = &m.mesh.positions;
+        let nverts = pos.len() / 3;
+        let mut placed = Vec::with_capacity(nverts);
+        for i in 0..nverts {
+            let p = V3::new(
+                pos[3 * i] as f64,
+                pos[3 * i + 1] as f64,
+                pos[3 * i + 2] as f64,
+            );
+            if !p.is_finite() {
+                return Err(format!(
+                    "vertex {} is not finite: ({}, {}, {})",
+                    i + 1,
+                    p.x,
+                    p.y,
+                    p.z
+                ));
+            }
+            let q = transform.apply(p);
+            if !q.is_finite() {
+                return Err(format!(
+                    "vertex {} is not finite after the transform",
+                    i + 1
+                ));
+            }
+            placed.push(q);
+        }
+        for f in m.mesh.indices.chunks_exact(3) {
+            let mut v = [V3::zero(); 3];
+            for (k, &ix) in f.iter().enumerate() {
+                v[k] = *placed.get(ix as usize).ok_or_else(|| {
+                    format!(
+                        "face vertex index {} out of range (1..={nverts})",
+                        ix as u64 + 1
+                    )
+                })?;
+            }
+            if mirror {
+                v.swap(1, 2);
+            }
+            tris.push(Triangle { v });
+        }
+    }
+    Ok(tris)
+}
+
+/// The seed scene's bumpy torus, mirroring `torus_mesh()` of the Mitsuba anchor script:
+/// nu × nv vertices, vertex (i, j) at index i·nv + j with u = 2πi/nu around the ring and
+/// v = 2πj/nv around the tube, tube radius r·(1 + 0.08 sin 12u sin 8v); 2·nu·nv faces, first
+/// all [a, c, b], then all [a, d, c], wound so (v1 − v0) × (v2 − v0) points outward.
+pub fn bumpy_torus(nu: usize, nv: usize, major: f64, minor: f64) -> (Vec<V3<f64>>, Vec<[u32; 3]>) {
+    use std::f64::consts::TAU;
+    let (du, dv) = (TAU / nu as f64, TAU / nv as f64);
+    let mut verts = Vec::with_capacity(nu * nv);
+    for i in 0..nu {
+        let u = i as f64 * du;
+        for j in 0..nv {
+            let v = j as f64 * dv;
+            let rr = minor * (1.0 + 0.08 * (12.0 * u).sin() * (8.0 * v).sin());
+            let ring = major + rr * v.cos();
+            verts.push(V3::new(ring * u.cos(), rr * v.sin(), ring * u.sin()));
+        }
+    }
+    let idx = |i: usize, j: usize| (i * nv + j) as u32;
+    let quad = |i: usize, j: usize| {
+        let (i1, j1) = ((i + 1) % nu, (j + 1) % nv);
+        (idx(i, j), idx(i1, j), idx(i1, j1), idx(i, j1))
+    };
+    let mut faces = Vec::with_capacity(2 * nu * nv);
+    for i in 0..nu {
+        for j in 0..nv {
+            let (a, b, c, _) = quad(i, j);
+            faces.push([a, c, b]);
+        }
+    }
+    for i in 0..nu {
+        for j in 0..nv {
+            let (a, _, c, d) = quad(i, j);
+            faces.push([a, d, c]);
+        }
+    }
+    (verts, faces)
+}
+
+/// Writes vertices and 0-based faces as an OBJ file (1-based indices); floats are written
+/// with Rust's shortest round-trip formatting.
+pub fn write_obj(
+    w: &mut impl Write,
+    vertices: &[V3<f64>],
+    faces: &[[u32; 3]],
+) -> std::io::Result<()> {
+    for v in vertices {
+        writeln!(w, "v {} {} {}", v.x, v.y, v.z)?;
+    }
+    for f in faces {
+        writeln!(
+            w,
+            "f {} {} {}",
+            f[0] as u64 + 1,
+            f[1] as u64 + 1,
+            f[2] as u64 + 1
+        )?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: V3<f64>, b: V3<f64>) -> bool {
+        (a - b).length() < 1e-12
+    }
+
+    #[test]
+    fn transform_order_is_scale_rotate_xyz_translate() {
+        let t = Transform {
+            translate: [1.0, 2.0, 3.0],
+            scale: [2.0, 1.0, 1.0],
+            rotate_deg: [0.0, 0.0, 90.0],
+        };
+        // (1,0,0) → scale (2,0,0) → rot Z 90° (0,2,0) → translate (1,4,3).
+        assert!(close(
+            t.apply(V3::new(1.0, 0.0, 0.0)),
+            V3::new(1.0, 4.0, 3.0)
+        ));
+        let rx = Transform {
+            rotate_deg: [90.0, 0.0, 0.0],
+            ..Default::default()
+        };
+        assert!(close(
+            rx.apply(V3::new(0.0, 1.0, 0.0)),
+            V3::new(0.0, 0.0, 1.0)
+        ));
+        let ry = Transform {
+            rotate_deg: [0.0, 90.0, 0.0],
+            ..Default::default()
+        };
+        assert!(close(
+            ry.apply(V3::new(0.0, 0.0, 1.0)),
+            V3::new(1.0, 0.0, 0.0)
+        ));
+        // X first, then Y: (0,1,0) → X 90° → (0,0,1) → Y 90° → (1,0,0).
+        let xy = Transform {
+            rotate_deg: [90.0, 90.0, 0.0],
+            ..Default::default()
+        };
+        assert!(close(
+            xy.apply(V3::new(0.0, 1.0, 0.0)),
+            V3::new(1.0, 0.0, 0.0)
+        ));
+        assert_eq!(
+            Transform::default().apply(V3::new(1.5, -2.0, 3.0)),
+            V3::new(1.5, -2.0, 3.0)
+        );
+    }
+
+    #[test]
+    fn torus_matches_the_anchor_script_and_faces_outward() {
+        let (nu, nv) = (25, 20);
+        let (v, f) = bumpy_torus(nu, nv, 2.0, 0.8);
+        assert_eq!(v.len(), nu * nv);
+        assert_eq!(f.len(), 2 * nu * nv);
+        // Vertex (i=0, j=0): u = v = 0 → (R + r, 0, 0).
+        assert!(close(v[0], V3::new(2.8, 0.0, 0.0)));
+        // First face [a, c, b] for (0,0): a=0, c=1*nv+1, b=1*nv.
+        assert_eq!(f[0], [0, nv as u32 + 1, nv as u32]);
+        // First of the second half: [a, d, c] for (0,0).
+        assert_eq!(f[nu * nv], [0, 1, nv as u32 + 1]);
+        for t in &f {
+            let p = [v[t[0] as usize], v[t[1] as usize], v[t[2] as usize]];
+            let n = (p[1] - p[0]).cross(p[2] - p[0]);
+            let c = (p[0] + p[1] + p[2]) / 3.0;
+            let axis = V3::new(c.x, 0.0, c.z).normalize() * 2.0;
+            assert!(n.dot(c - axis) > 0.0, "face {t:?} points inward");
+        }
+    }
+
+    #[test]
+    fn obj_round_trip() {
+        let (v, f) = bumpy_torus(8, 6, 2.0, 0.8);
+        let mut buf = Vec::new();
+        write_obj(&mut buf, &v, &f).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.obj");
+        std::fs::write(&path, &buf).unwrap();
+        let t = Transform {
+            translate: [1.0, 0.0, 0.0],
+            ..Default::default()
+        };
+        let tris = load_obj(&path, &t).unwrap();
+        assert_eq!(tris.len(), f.len());
+        for (tri, face) in tris.iter().zip(&f) {
+            for k in 0..3 {
+                let want = t.apply(v[face[k] as usize]);
+                assert!((tri.v[k] - want).length() < 1e-5, "{tri:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn mirroring_scale_keeps_fronts() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("tri.obj");
+        std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let t = Transform {
+            scale: [-1.0, 1.0, 1.0],
+            ..Default::default()
+        };
+        let tris = load_obj(&path, &t).unwrap();
+        assert!(tris[0].face_normal().z > 0.0);
+        // Quads are split into two triangles.
+        std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n").unwrap();
+        assert_eq!(load_obj(&path, &Transform::default()).unwrap().len(), 2);
+    }
+
+    #[test]
+    fn bad_obj_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.obj");
+        let err = |src: &str| {
+            std::fs::write(&path, src).unwrap();
+            load_obj(&path, &Transform::default()).unwrap_err()
+        };
+        assert!(err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").contains("out of"));
+        assert!(err("v 0 0 0\nv 1 0 0\nv 0 1 0\n").contains("no faces"));
+        assert!(err("v 0 0 x\nf 1 2 3\n").contains("parse"));
+        assert!(err("v 0 0 inf\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").contains("not finite"));
+        assert!(err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -9223372036854775808\n").contains("OBJ"));
+        assert!(err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n").contains("out of"));
+        let missing = dir.path().join("nope.obj");
+        assert!(
+            load_obj(&missing, &Transform::default())
+                .unwrap_err()
+                .contains("cannot open")
+        );
+    }
+}
