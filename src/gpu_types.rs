@@ -25,9 +25,11 @@ pub struct GpuSphere {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuCylinder {
-    pub p1: [f32; 3],
+    /// p1 of the lecture (WGSL member names may not end in a digit).
+    pub pa: [f32; 3],
     pub radius: f32,
-    pub p2: [f32; 3],
+    /// p2 of the lecture.
+    pub pb: [f32; 3],
     /// 1: closed by end caps; 0: open tube.
     pub caps: u32,
     pub object: u32,
@@ -48,11 +50,11 @@ pub struct GpuPlane {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuTriangle {
-    pub v0: [f32; 3],
+    pub va: [f32; 3],
     pub object: u32,
-    pub v1: [f32; 3],
+    pub vb: [f32; 3],
     pub prim: u32,
-    pub v2: [f32; 3],
+    pub vc: [f32; 3],
     pub material: u32,
 }
 
@@ -100,11 +102,20 @@ pub struct GpuFrame {
     pub num_lights: u32,
     /// First pixel (x, y) of the tile this dispatch renders.
     pub tile_origin: [u32; 2],
-    /// Index of the first sample this pass adds (progressive rendering).
+    /// Size (width, height) of the tile this dispatch renders.
+    pub tile_size: [u32; 2],
+    /// Index of the first sample this dispatch adds (progressive rendering).
     pub sample_base: u32,
-    /// Width of the tile (row pitch of the output buffer).
-    pub tile_width: u32,
+    /// Row pitch, in pixels, of the output buffer.
+    pub out_pitch: u32,
+    /// First image row held by the output buffer.
+    pub out_first_row: u32,
+    /// [`FRAME_ACCUMULATE`]: add to the output instead of overwriting it.
+    pub flags: u32,
 }
+
+/// Frame flag: the dispatch adds its samples' sum to the output buffer.
+pub const FRAME_ACCUMULATE: u32 = 1;
 
 /// Everything a backend needs, flattened: the layout of the GPU's storage buffers.
 #[derive(Clone, Debug, Default)]
@@ -141,9 +152,9 @@ impl GpuScene {
                 .map(|Tagged { shape: c, tag: t }| {
                     let (object, prim, material) = tag(t);
                     GpuCylinder {
-                        p1: c.p1.to_array(),
+                        pa: c.p1.to_array(),
                         radius: c.radius,
-                        p2: c.p2.to_array(),
+                        pb: c.p2.to_array(),
                         caps: c.caps as u32,
                         object,
                         prim,
@@ -166,11 +177,11 @@ impl GpuScene {
                 .triangles
                 .iter()
                 .map(|Tagged { shape: tri, tag: t }| GpuTriangle {
-                    v0: tri.v[0].to_array(),
+                    va: tri.v[0].to_array(),
                     object: t.object,
-                    v1: tri.v[1].to_array(),
+                    vb: tri.v[1].to_array(),
                     prim: t.prim,
-                    v2: tri.v[2].to_array(),
+                    vc: tri.v[2].to_array(),
                     material: t.material,
                 })
                 .collect(),
@@ -206,4 +217,33 @@ impl GpuScene {
                 .collect(),
         }
     }
+}
+
+/// One ray of a `trace` query, 32 bytes (`QueryRay` in `shaders/trace.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuQueryRay {
+    pub origin: [f32; 3],
+    pub tmin: f32,
+    pub dir: [f32; 3],
+    pub tmax: f32,
+}
+
+/// Hit flag: the record holds a hit (nearest mode: else the ray missed).
+pub const QUERY_FOUND: u32 = 1;
+/// Hit flag: the ray enters a solid or meets a front face.
+pub const QUERY_ENTER: u32 = 2;
+
+/// One hit of a `trace` query, 32 bytes (`QueryHit` in `shaders/trace.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuQueryHit {
+    pub normal: [f32; 3],
+    pub t: f32,
+    pub object: u32,
+    pub prim: u32,
+    /// The [`crate::primitives::PrimRef`] hit (orders hits at equal t).
+    pub prim_ref: u32,
+    /// [`QUERY_FOUND`] | [`QUERY_ENTER`] | part << 8.
+    pub flags: u32,
 }

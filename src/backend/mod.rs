@@ -2,3 +2,4 @@
 //! [`cpu`] (the reference) and `gpu` (WGSL compute through wgpu).
 
 pub mod cpu;
+pub mod gpu;

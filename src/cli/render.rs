@@ -5,6 +5,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use std::path::PathBuf;
 use std::time::Instant;
+use strahl::backend::gpu::{self, GpuContext, SceneBuffers};
 use strahl::render::Prepared;
 use strahl::scene::Scene;
 
@@ -15,8 +16,9 @@ pub struct RenderArgs {
     /// Output image: .png (8-bit sRGB) or .exr (linear float).
     #[arg(short, long)]
     pub output: PathBuf,
-    #[arg(long, value_enum, default_value = "cpu")]
-    pub backend: BackendChoice,
+    /// Where to render (default: gpu, falling back to cpu when no Vulkan adapter exists).
+    #[arg(long, value_enum)]
+    pub backend: Option<BackendChoice>,
     /// Image width (default: the scene's [image] width).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub width: Option<u32>,
@@ -49,34 +51,64 @@ pub fn run(a: RenderArgs) -> Result<()> {
         prep.build_time.as_secs_f64()
     );
     let frame = prep.frame(width, height);
-    let start = Instant::now();
-    let image = match a.backend {
-        BackendChoice::Cpu => {
+    let samples = width as f64 * height as f64 * frame.spp as f64;
+    let gpu = match a.backend {
+        Some(BackendChoice::Cpu) => None,
+        Some(BackendChoice::Gpu) => Some(GpuContext::new()?),
+        None => match GpuContext::new() {
+            Ok(ctx) => Some(ctx),
+            Err(e) => {
+                eprintln!("gpu backend unavailable ({e}); rendering on the cpu");
+                None
+            }
+        },
+    };
+    let image = match gpu {
+        None => {
             let bar = progress_bar(height as u64, "cpu");
+            let start = Instant::now();
             let img = strahl::backend::cpu::render(&prep, &frame, &|rows| bar.set_position(rows));
             bar.finish_and_clear();
+            let secs = start.elapsed().as_secs_f64();
+            println!(
+                "rendered {width}x{height} at {} spp on the cpu ({} threads) in {secs:.3} s: {:.2} M primary rays/s",
+                frame.spp,
+                rayon::current_num_threads(),
+                samples / secs / 1e6
+            );
             img
         }
-        BackendChoice::Gpu => bail!("the GPU backend is not available in this build yet; use --backend cpu"),
+        Some(ctx) => {
+            let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
+            let bar = progress_bar(1, "gpu");
+            let (img, stats) = gpu::render::render(&ctx, &buffers, &frame, buffers.key, &|done, total| {
+                bar.set_length(total);
+                bar.set_position(done)
+            })?;
+            bar.finish_and_clear();
+            let secs = stats.wall.as_secs_f64();
+            println!(
+                "rendered {width}x{height} at {} spp on {} in {secs:.3} s ({} dispatches, shader {} compiled in {:.3} s): {:.2} M primary rays/s",
+                frame.spp,
+                ctx.adapter_name(),
+                stats.dispatches,
+                stats.key.label(),
+                stats.compile_time.as_secs_f64(),
+                samples / secs / 1e6
+            );
+            if let Some(g) = stats.gpu_time {
+                println!(
+                    "gpu time from timestamp queries: {:.3} ms, {:.2} M primary rays/s",
+                    g.as_secs_f64() * 1e3,
+                    samples / g.as_secs_f64() / 1e6
+                );
+            }
+            img
+        }
     };
-    let secs = start.elapsed().as_secs_f64();
-    let samples = width as f64 * height as f64 * frame.spp as f64;
-    println!(
-        "rendered {width}x{height} at {} spp on {} in {secs:.3} s: {:.2} M primary rays/s",
-        frame.spp,
-        backend_name(a.backend),
-        samples / secs / 1e6
-    );
     image.save(&a.output).with_context(|| format!("writing {}", a.output.display()))?;
     println!("wrote {}", a.output.display());
     Ok(())
-}
-
-fn backend_name(b: BackendChoice) -> String {
-    match b {
-        BackendChoice::Cpu => format!("cpu ({} threads)", rayon::current_num_threads()),
-        BackendChoice::Gpu => "gpu".into(),
-    }
 }
 
 /// Fails before any work when the output format is unknown.

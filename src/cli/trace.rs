@@ -31,7 +31,7 @@ pub struct TraceArgs {
     pub all: bool,
     #[arg(long, value_enum, default_value = "cpu")]
     pub backend: BackendChoice,
-    /// Arithmetic of the CPU backend: f32 (the GPU's mirror) or f64 (the oracle).
+    /// Arithmetic: f32 (the GPU's, and the CPU's mirror of it) or f64 (the CPU oracle).
     #[arg(long, value_enum, default_value = "f32")]
     pub precision: Precision,
 }
@@ -43,7 +43,8 @@ pub fn run(a: TraceArgs) -> Result<()> {
     let csv = match (a.backend, a.precision) {
         (BackendChoice::Cpu, Precision::F32) => cpu_csv::<f32>(&scene, &rays, a.all),
         (BackendChoice::Cpu, Precision::F64) => cpu_csv::<f64>(&scene, &rays, a.all),
-        (BackendChoice::Gpu, _) => bail!("the GPU backend is not available in this build yet; use --backend cpu"),
+        (BackendChoice::Gpu, Precision::F64) => bail!("--precision f64 needs --backend cpu: the GPU traces in f32"),
+        (BackendChoice::Gpu, Precision::F32) => gpu_csv(&scene, &rays, a.all)?,
     };
     let secs = start.elapsed().as_secs_f64();
     match &a.output {
@@ -57,11 +58,24 @@ pub fn run(a: TraceArgs) -> Result<()> {
 }
 
 fn cpu_csv<R: Real>(scene: &Scene, rays: &[RayQuery], all: bool) -> String {
-    let hits = strahl::backend::cpu::trace::<R>(scene, rays, all);
+    hits_csv(rays, &strahl::backend::cpu::trace::<R>(scene, rays, all), all)
+}
+
+fn gpu_csv(scene: &Scene, rays: &[RayQuery], all: bool) -> Result<String> {
+    use strahl::backend::gpu::{GpuContext, SceneBuffers, trace};
+    let ctx = GpuContext::new()?;
+    let prep = strahl::render::Prepared::new(scene.clone());
+    let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
+    let hits = trace::trace(&ctx, &buffers, rays, all)?;
+    eprintln!("traced on {}", ctx.adapter_name());
+    Ok(hits_csv(rays, &hits, all))
+}
+
+fn hits_csv<R: Real>(rays: &[RayQuery], hits: &[Vec<strahl::primitives::Hit<R>>], all: bool) -> String {
     let mut out = String::with_capacity(64 * rays.len() + HITS_HEADER.len() + 1);
     out.push_str(HITS_HEADER);
     out.push('\n');
-    for (i, (q, h)) in rays.iter().zip(&hits).enumerate() {
+    for (i, (q, h)) in rays.iter().zip(hits).enumerate() {
         write_hit_rows(&mut out, i, &q.ray::<R>(), h, !all);
     }
     out

@@ -41,7 +41,8 @@ impl Prepared {
         f.ambient = s.ambient.map(|c| c as f32);
         f.num_planes = self.gpu.planes.len() as u32;
         f.num_lights = self.gpu.lights.len() as u32;
-        f.tile_width = width;
+        f.tile_size = [width, height];
+        f.out_pitch = width;
         f
     }
 }

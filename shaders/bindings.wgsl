@@ -1,0 +1,40 @@
+// The scene's storage buffers (group 0), uploaded once per scene. A binding is declared only
+// in variants whose defs use it; empty arrays are bound to a one-element dummy buffer.
+#define_import_path strahl::bindings
+
+#import strahl::types::{Frame, Material, Light}
+#ifdef BVH
+#import strahl::types::BvhNode
+#endif
+#ifdef SPHERES
+#import strahl::types::Sphere
+#endif
+#ifdef CYLINDERS
+#import strahl::types::Cylinder
+#endif
+#ifdef PLANES
+#import strahl::types::Plane
+#endif
+#ifdef TRIANGLES
+#import strahl::types::Triangle
+#endif
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+#ifdef SPHERES
+@group(0) @binding(1) var<storage, read> spheres: array<Sphere>;
+#endif
+#ifdef CYLINDERS
+@group(0) @binding(2) var<storage, read> cylinders: array<Cylinder>;
+#endif
+#ifdef PLANES
+@group(0) @binding(3) var<storage, read> planes: array<Plane>;
+#endif
+#ifdef TRIANGLES
+@group(0) @binding(4) var<storage, read> triangles: array<Triangle>;
+#endif
+#ifdef BVH
+@group(0) @binding(5) var<storage, read> nodes: array<BvhNode>;
+@group(0) @binding(6) var<storage, read> prim_refs: array<u32>;
+#endif
+@group(0) @binding(7) var<storage, read> materials: array<Material>;
+@group(0) @binding(8) var<storage, read> lights: array<Light>;

@@ -1,0 +1,121 @@
+// Ray/finite cylinder with optional caps: twin of src/geometry/cylinder.rs (see there for
+// the cross-product formulation that survives rays parallel to the axis).
+#define_import_path strahl::cylinder
+
+#import strahl::types::{Cylinder, PART_SURFACE, PART_CAP_P1, PART_CAP_P2}
+#import strahl::roots::{Roots, roots_empty, roots_push, stable_quadratic}
+
+// Root of the cap disk (centre c, unit normal n), or -1 with .y = 0 when missed.
+fn cap_root(radius: f32, o: vec3<f32>, d: vec3<f32>, c: vec3<f32>, n: vec3<f32>) -> vec2<f32> {
+    let dn = dot(d, n);
+    if dn == 0.0 {
+        return vec2<f32>(0.0, 0.0);
+    }
+    let t = dot(c - o, n) / dn;
+    let q = (o - c) + d * t;
+    return vec2<f32>(t, select(0.0, 1.0, dot(q, q) <= radius * radius));
+}
+
+fn cylinder_roots(cy: Cylinder, ro: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots {
+    let dp = cy.pb - cy.pa;
+    let len = length(dp);
+    let axis = dp / len;
+    let o = ro - cy.pa;
+    let oa = cross(o, axis);
+    let da = cross(d, axis);
+    let a = dot(da, da);
+    let beta = dot(oa, da);
+    let r2 = cy.radius * cy.radius;
+    let c = dot(oa, oa) - r2;
+    let e = dot(oa, d);
+    let disc = a * r2 - e * e;
+    var roots = roots_empty();
+    let q = stable_quadratic(a, beta, c, disc);
+    if q.z != 0.0 {
+        let o_axial = dot(o, axis);
+        let d_axial = dot(d, axis);
+        let alpha0 = (o_axial + q.x * d_axial) / len;
+        if alpha0 >= 0.0 && alpha0 <= 1.0 {
+            roots_push(&roots, q.x, PART_SURFACE, tmin, tmax);
+        }
+        let alpha1 = (o_axial + q.y * d_axial) / len;
+        if alpha1 >= 0.0 && alpha1 <= 1.0 {
+            roots_push(&roots, q.y, PART_SURFACE, tmin, tmax);
+        }
+    }
+    if cy.caps != 0u {
+        let c1 = cap_root(cy.radius, ro, d, cy.pa, -axis);
+        if c1.y != 0.0 {
+            roots_push(&roots, c1.x, PART_CAP_P1, tmin, tmax);
+        }
+        let c2 = cap_root(cy.radius, ro, d, cy.pb, axis);
+        if c2.y != 0.0 {
+            roots_push(&roots, c2.x, PART_CAP_P2, tmin, tmax);
+        }
+    }
+    return roots;
+}
+
+fn cylinder_normal(cy: Cylinder, o: vec3<f32>, d: vec3<f32>, t: f32, part: u32) -> vec3<f32> {
+    let dp = cy.pb - cy.pa;
+    let axis = dp / length(dp);
+    if part == PART_CAP_P1 {
+        return -axis;
+    }
+    if part == PART_CAP_P2 {
+        return axis;
+    }
+    let q = (o - cy.pa) + d * t;
+    return normalize(q - axis * dot(q, axis));
+}
+
+// Keeps (t, part) as the best candidate if it lies in (tmin, tmax) and below the best so far;
+// at equal t the earlier candidate stays, as in roots_push.
+fn keep_first(best: vec2<f32>, t: f32, part: u32, tmin: f32, tmax: f32) -> vec2<f32> {
+    if t > tmin && t < tmax && (best.x < 0.0 || t < best.x) {
+        return vec2<f32>(t, f32(part));
+    }
+    return best;
+}
+
+// The first root in (tmin, tmax) as (t, part), or t = -1: cylinder_roots(..).t[0] without
+// the list. Candidates in the order cylinder_roots pushes them.
+fn cylinder_first(cy: Cylinder, ro: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> vec2<f32> {
+    let dp = cy.pb - cy.pa;
+    let len = length(dp);
+    let axis = dp / len;
+    let o = ro - cy.pa;
+    let oa = cross(o, axis);
+    let da = cross(d, axis);
+    let a = dot(da, da);
+    let beta = dot(oa, da);
+    let r2 = cy.radius * cy.radius;
+    let c = dot(oa, oa) - r2;
+    let e = dot(oa, d);
+    let disc = a * r2 - e * e;
+    var best = vec2<f32>(-1.0, 0.0);
+    let q = stable_quadratic(a, beta, c, disc);
+    if q.z != 0.0 {
+        let o_axial = dot(o, axis);
+        let d_axial = dot(d, axis);
+        let alpha0 = (o_axial + q.x * d_axial) / len;
+        if alpha0 >= 0.0 && alpha0 <= 1.0 {
+            best = keep_first(best, q.x, PART_SURFACE, tmin, tmax);
+        }
+        let alpha1 = (o_axial + q.y * d_axial) / len;
+        if alpha1 >= 0.0 && alpha1 <= 1.0 {
+            best = keep_first(best, q.y, PART_SURFACE, tmin, tmax);
+        }
+    }
+    if cy.caps != 0u {
+        let c1 = cap_root(cy.radius, ro, d, cy.pa, -axis);
+        if c1.y != 0.0 {
+            best = keep_first(best, c1.x, PART_CAP_P1, tmin, tmax);
+        }
+        let c2 = cap_root(cy.radius, ro, d, cy.pb, axis);
+        if c2.y != 0.0 {
+            best = keep_first(best, c2.x, PART_CAP_P2, tmin, tmax);
+        }
+    }
+    return best;
+}

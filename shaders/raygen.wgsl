@@ -1,0 +1,23 @@
+// Primary rays: twin of src/render/camera.rs.
+#define_import_path strahl::raygen
+
+#import strahl::types::Frame
+
+// R2 sub-pixel offset of sample s (the first one is the pixel centre).
+fn sample_offset(s: u32) -> vec2<f32> {
+    let sf = f32(s);
+    return fract(vec2<f32>(0.5 + sf * 0.7548777, 0.5 + sf * 0.5698403));
+}
+
+struct RayPair {
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+}
+
+fn primary_ray(f: Frame, x: u32, y: u32, s: u32) -> RayPair {
+    let off = sample_offset(s);
+    let u = 2.0 * (f32(x) + off.x) / f32(f.width) - 1.0;
+    let v = 1.0 - 2.0 * (f32(y) + off.y) / f32(f.height);
+    let dir = f.forward + f.right * u + f.up * v;
+    return RayPair(f.eye, normalize(dir));
+}

@@ -1,0 +1,193 @@
+// Whitted shading: twin of src/render/shade.rs (same stack order, same sums).
+//
+// Shader defs: LIGHTS (any light; with it POINT_LIGHTS / DIRECTIONAL_LIGHTS), MIRROR,
+// DIELECTRIC, EMISSIVE (which material kinds exist; diffuse is always compiled).
+#define_import_path strahl::shade
+
+#import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, LIGHT_POINT, F32_MAX}
+#import strahl::bindings::{frame, materials, lights}
+#import strahl::traverse::{nearest_hit, prim_normal, prim_tag}
+#import strahl::spawn::offset_ray_origin
+#import strahl::raygen::primary_ray
+
+// Depth of the explicit ray stack (render::shade::WHITTED_STACK).
+const WHITTED_STACK: u32 = 16u;
+// Dielectrics a shadow ray may cross (render::shade::SHADOW_PASSES).
+const SHADOW_PASSES: u32 = 8u;
+const INV_PI: f32 = 0.31830988618379067;
+
+struct Pending {
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+    weight: vec3<f32>,
+    depth: u32,
+}
+
+fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = sqrt(max(1.0 - sin2_t, 0.0));
+    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    return 0.5 * (r_parl * r_parl + r_perp * r_perp);
+}
+
+fn reflect_dir(d: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    return d - n * (2.0 * dot(d, n));
+}
+
+fn refract_dir(d: vec3<f32>, n: vec3<f32>, cos_i: f32, eta_ratio: f32) -> vec3<f32> {
+    let sin2_t = eta_ratio * eta_ratio * (1.0 - cos_i * cos_i);
+    let cos_t = sqrt(max(1.0 - sin2_t, 0.0));
+    return normalize(d * eta_ratio + n * (eta_ratio * cos_i - cos_t));
+}
+
+#ifdef LIGHTS
+// Transmittance towards a light dist away: 0 behind an opaque surface, the product of the
+// dielectric colours crossed otherwise.
+fn shadow_transmittance(p: vec3<f32>, n: vec3<f32>, l: vec3<f32>, dist: f32) -> vec3<f32> {
+    var origin = offset_ray_origin(p, n);
+    var remaining = dist;
+    var tr = vec3<f32>(1.0);
+    for (var pass_ = 0u; pass_ < SHADOW_PASSES; pass_ += 1u) {
+        let hit = nearest_hit(origin, l, 0.0, remaining);
+        if !hit.found {
+            return tr;
+        }
+#ifdef DIELECTRIC
+        let m = materials[prim_tag(hit.prim).z];
+        if m.kind != MAT_DIELECTRIC {
+            return vec3<f32>(0.0);
+        }
+        tr = tr * m.color;
+        let hn = prim_normal(hit.prim, origin, l, hit.t, hit.part);
+        let side = select(hn, -hn, dot(l, hn) < 0.0);
+        origin = offset_ray_origin(origin + l * hit.t, side);
+        remaining -= hit.t;
+#else
+        return vec3<f32>(0.0);
+#endif
+    }
+    return vec3<f32>(0.0);
+}
+#endif
+
+fn direct_light(p: vec3<f32>, ns: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
+    var sum = frame.ambient;
+#ifdef LIGHTS
+    for (var i = 0u; i < frame.num_lights; i += 1u) {
+        let light = lights[i];
+        var l: vec3<f32>;
+        var dist: f32;
+        var e: vec3<f32>;
+#ifdef POINT_LIGHTS
+#ifdef DIRECTIONAL_LIGHTS
+        let is_point = light.kind == LIGHT_POINT;
+#else
+        let is_point = true;
+#endif
+#else
+        let is_point = false;
+#endif
+        if is_point {
+            let to = light.vector - p;
+            let d2 = dot(to, to);
+            dist = sqrt(d2);
+            l = to / dist;
+            e = light.intensity / d2;
+        } else {
+            l = -light.vector;
+            dist = F32_MAX;
+            e = light.intensity;
+        }
+        let cos = dot(ns, l);
+        if cos <= 0.0 {
+            continue;
+        }
+        let tr = shadow_transmittance(p, ns, l, dist);
+        sum += e * tr * (cos * INV_PI);
+    }
+#endif
+    return albedo * sum;
+}
+
+// Radiance along a primary ray.
+fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
+    var stack: array<Pending, WHITTED_STACK>;
+    stack[0] = Pending(origin, dir, vec3<f32>(1.0), 0u);
+    var sp = 1u;
+    var color = vec3<f32>(0.0);
+    let max_depth = frame.max_depth;
+    while sp > 0u {
+        sp -= 1u;
+        let cur = stack[sp];
+        let hit = nearest_hit(cur.origin, cur.dir, 0.0, F32_MAX);
+        if !hit.found {
+            color += cur.weight * frame.background;
+            continue;
+        }
+        let tag = prim_tag(hit.prim);
+        let m = materials[tag.z];
+        let n = prim_normal(hit.prim, cur.origin, cur.dir, hit.t, hit.part);
+        let p = cur.origin + cur.dir * hit.t;
+        let front = dot(cur.dir, n) < 0.0;
+        let ns = select(-n, n, front);
+        var handled = false;
+#ifdef EMISSIVE
+        if m.kind == MAT_EMISSIVE {
+            color += cur.weight * m.radiance;
+            handled = true;
+        }
+#endif
+#ifdef MIRROR
+        if m.kind == MAT_MIRROR {
+            if cur.depth < max_depth && sp < WHITTED_STACK {
+                stack[sp] = Pending(offset_ray_origin(p, ns), reflect_dir(cur.dir, ns), cur.weight * m.color, cur.depth + 1u);
+                sp += 1u;
+            }
+            handled = true;
+        }
+#endif
+#ifdef DIELECTRIC
+        if m.kind == MAT_DIELECTRIC {
+            if cur.depth < max_depth {
+                let cos_i = -dot(cur.dir, ns);
+                let eta = select(1.0 / m.ior, m.ior, front);
+                let f = fresnel_dielectric(cos_i, eta);
+                if sp < WHITTED_STACK {
+                    stack[sp] = Pending(offset_ray_origin(p, ns), reflect_dir(cur.dir, ns), cur.weight * f, cur.depth + 1u);
+                    sp += 1u;
+                }
+                if f < 1.0 && sp < WHITTED_STACK {
+                    let t = refract_dir(cur.dir, ns, cos_i, 1.0 / eta);
+                    stack[sp] = Pending(offset_ray_origin(p, -ns), t, cur.weight * m.color * (1.0 - f), cur.depth + 1u);
+                    sp += 1u;
+                }
+            }
+            handled = true;
+        }
+#endif
+        if !handled {
+            color += cur.weight * direct_light(p, ns, m.color);
+        }
+    }
+    return color;
+}
+
+// Sum (not mean) of samples sample_base .. sample_base + spp of pixel (x, y); the host
+// divides by the total sample count, as render::shade::shade_pixel does.
+fn shade_pixel_sum(x: u32, y: u32) -> vec3<f32> {
+    var sum = vec3<f32>(0.0);
+    for (var s = 0u; s < frame.spp; s += 1u) {
+        let ray = primary_ray(frame, x, y, frame.sample_base + s);
+        let c = radiance(ray.origin, ray.dir);
+        // A non-finite sample (never on a valid scene) counts as black.
+        let finite = all(abs(c) <= vec3<f32>(F32_MAX));
+        if finite {
+            sum += c;
+        }
+    }
+    return sum;
+}

@@ -1,0 +1,48 @@
+// Ray/sphere: twin of src/geometry/sphere.rs (see there for the formulation and its error).
+#define_import_path strahl::sphere
+
+#import strahl::types::{Sphere, PART_SURFACE}
+#import strahl::roots::{Roots, roots_empty, roots_push, stable_quadratic}
+
+fn sphere_roots(s: Sphere, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots {
+    let f = o - s.center;
+    let a = dot(d, d);
+    let beta = dot(d, f);
+    let r2 = s.radius * s.radius;
+    let c = dot(f, f) - r2;
+    let l = f - d * (beta / a);
+    let disc = a * (r2 - dot(l, l));
+    var roots = roots_empty();
+    let q = stable_quadratic(a, beta, c, disc);
+    if q.z != 0.0 {
+        roots_push(&roots, q.x, PART_SURFACE, tmin, tmax);
+        roots_push(&roots, q.y, PART_SURFACE, tmin, tmax);
+    }
+    return roots;
+}
+
+fn sphere_normal(s: Sphere, o: vec3<f32>, d: vec3<f32>, t: f32) -> vec3<f32> {
+    return normalize((o - s.center) + d * t);
+}
+
+// The first root in (tmin, tmax) as (t, part), or t = -1: the same root as
+// sphere_roots(..).t[0], without building the list (nearest-hit traversal).
+fn sphere_first(s: Sphere, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> vec2<f32> {
+    let f = o - s.center;
+    let a = dot(d, d);
+    let beta = dot(d, f);
+    let r2 = s.radius * s.radius;
+    let c = dot(f, f) - r2;
+    let l = f - d * (beta / a);
+    let disc = a * (r2 - dot(l, l));
+    let q = stable_quadratic(a, beta, c, disc);
+    if q.z != 0.0 {
+        if q.x > tmin && q.x < tmax {
+            return vec2<f32>(q.x, 0.0);
+        }
+        if q.y > tmin && q.y < tmax {
+            return vec2<f32>(q.y, 0.0);
+        }
+    }
+    return vec2<f32>(-1.0, 0.0);
+}

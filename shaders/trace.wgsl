@@ -1,0 +1,163 @@
+// Ray-query entry points (`strahl trace --backend gpu`): twin of backend::cpu::trace.
+//
+// trace_nearest: one QueryHit per ray. Every-hit mode runs two passes: trace_count writes
+// each ray's hit count to `offsets`; the host turns the counts into exclusive offsets; then
+// trace_all writes each ray's hits at its offset and sorts them like primitives::sort_hits.
+#import strahl::types::{QueryRay, QueryHit, QUERY_FOUND, QUERY_ENTER, KIND_PLANE, INDEX_BITS}
+#ifdef BVH
+#import strahl::bindings::{nodes, prim_refs}
+#endif
+#ifdef SPHERES
+#import strahl::bindings::spheres
+#endif
+#ifdef CYLINDERS
+#import strahl::bindings::cylinders
+#endif
+#ifdef TRIANGLES
+#import strahl::bindings::triangles
+#endif
+#ifdef PLANES
+#import strahl::bindings::planes
+#endif
+#import strahl::roots::Roots
+#import strahl::traverse::{nearest_hit, prim_normal, prim_tag, prim_roots, prim_ref}
+#ifdef BVH
+#import strahl::traverse::{slab, safe_inverse, TRAVERSAL_STACK}
+#endif
+
+@group(1) @binding(0) var<storage, read> rays: array<QueryRay>;
+@group(1) @binding(1) var<storage, read_write> hits: array<QueryHit>;
+@group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
+
+const WORKGROUP: u32 = 64u;
+
+fn make_hit(r: u32, o: vec3<f32>, d: vec3<f32>, t: f32, part: u32) -> QueryHit {
+    let n = prim_normal(r, o, d, t, part);
+    let tag = prim_tag(r);
+    let enter = select(0u, QUERY_ENTER, dot(d, n) < 0.0);
+    return QueryHit(n, t, tag.x, tag.y, r, QUERY_FOUND | enter | (part << 8u));
+}
+
+@compute @workgroup_size(WORKGROUP, 1, 1)
+fn trace_nearest(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= arrayLength(&rays) {
+        return;
+    }
+    let q = rays[i];
+    let best = nearest_hit(q.origin, q.dir, q.tmin, q.tmax);
+    if best.found {
+        hits[i] = make_hit(best.prim, q.origin, q.dir, best.t, best.part);
+    } else {
+        hits[i] = QueryHit(vec3<f32>(0.0), 0.0, 0u, 0u, 0u, 0u);
+    }
+}
+
+// Counts (write = false) or writes at hits[base..] (write = true) every root of r.
+fn emit_roots(r: u32, q: QueryRay, write: bool, base: u32, count: ptr<function, u32>) {
+    let roots = prim_roots(r, q.origin, q.dir, q.tmin, q.tmax);
+    for (var j = 0u; j < roots.len; j += 1u) {
+        if write {
+            hits[base + *count] = make_hit(r, q.origin, q.dir, roots.t[j], roots.part[j]);
+        }
+        *count += 1u;
+    }
+}
+
+// Every hit of ray q in (tmin, tmax): the walk of accel::traverse::all.
+fn visit_all(q: QueryRay, write: bool, base: u32) -> u32 {
+    var count = 0u;
+#ifdef PLANES
+    for (var i = 0u; i < arrayLength(&planes); i += 1u) {
+        emit_roots(prim_ref(KIND_PLANE, i), q, write, base, &count);
+    }
+#endif
+#ifdef BVH
+    let inv = safe_inverse(q.dir);
+    var stack: array<u32, TRAVERSAL_STACK>;
+    var sp = 0u;
+    if slab(nodes[0], q.origin, inv, q.tmin, q.tmax) >= 0.0 {
+        stack[0] = 0u;
+        sp = 1u;
+    }
+    while sp > 0u {
+        sp -= 1u;
+        let node = stack[sp];
+        let n = nodes[node];
+        if n.count > 0u {
+            let end = n.left_or_first + n.count;
+            for (var k = n.left_or_first; k < end; k += 1u) {
+                emit_roots(prim_refs[k], q, write, base, &count);
+            }
+        } else {
+            let l = node + 1u;
+            let r = n.left_or_first;
+            if slab(nodes[r], q.origin, inv, q.tmin, q.tmax) >= 0.0 {
+                stack[sp] = r;
+                sp += 1u;
+            }
+            if slab(nodes[l], q.origin, inv, q.tmin, q.tmax) >= 0.0 {
+                stack[sp] = l;
+                sp += 1u;
+            }
+        }
+    }
+#else
+#ifdef SPHERES
+    for (var i = 0u; i < arrayLength(&spheres); i += 1u) {
+        emit_roots(prim_ref(0u, i), q, write, base, &count);
+    }
+#endif
+#ifdef CYLINDERS
+    for (var i = 0u; i < arrayLength(&cylinders); i += 1u) {
+        emit_roots(prim_ref(1u, i), q, write, base, &count);
+    }
+#endif
+#ifdef TRIANGLES
+    for (var i = 0u; i < arrayLength(&triangles); i += 1u) {
+        emit_roots(prim_ref(2u, i), q, write, base, &count);
+    }
+#endif
+#endif
+    return count;
+}
+
+@compute @workgroup_size(WORKGROUP, 1, 1)
+fn trace_count(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= arrayLength(&rays) {
+        return;
+    }
+    offsets[i] = visit_all(rays[i], false, 0u);
+}
+
+// Hit a sorts before hit b: by t, then PrimRef, then part (primitives::sort_hits).
+fn hit_less(a: QueryHit, b: QueryHit) -> bool {
+    if a.t != b.t {
+        return a.t < b.t;
+    }
+    if a.prim_ref != b.prim_ref {
+        return a.prim_ref < b.prim_ref;
+    }
+    return (a.flags >> 8u) < (b.flags >> 8u);
+}
+
+@compute @workgroup_size(WORKGROUP, 1, 1)
+fn trace_all(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= arrayLength(&rays) {
+        return;
+    }
+    let base = offsets[i];
+    let count = visit_all(rays[i], true, base);
+    // Insertion sort of this ray's hits (a ray crosses few surfaces).
+    for (var a = 1u; a < count; a += 1u) {
+        let h = hits[base + a];
+        var b = a;
+        while b > 0u && hit_less(h, hits[base + b - 1u]) {
+            hits[base + b] = hits[base + b - 1u];
+            b -= 1u;
+        }
+        hits[base + b] = h;
+    }
+}

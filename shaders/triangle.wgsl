@@ -1,0 +1,78 @@
+// Watertight ray/triangle (Woop, Benthin & Wald, JCGT 2013): twin of
+// src/geometry/triangle.rs (see there for why shared edges never leak).
+#define_import_path strahl::triangle
+
+#import strahl::types::{Triangle, PART_SURFACE}
+#import strahl::roots::{Roots, roots_empty, roots_push}
+
+// The ray's shear: permutation (kx, ky, kz) and (sx, sy, sz).
+struct Shear {
+    k: vec3<u32>,
+    s: vec3<f32>,
+}
+
+fn shear_new(d: vec3<f32>) -> Shear {
+    let ad = abs(d);
+    var kz = 2u;
+    if ad.x >= ad.y && ad.x >= ad.z {
+        kz = 0u;
+    } else if ad.y >= ad.z {
+        kz = 1u;
+    }
+    var kx = (kz + 1u) % 3u;
+    var ky = (kx + 1u) % 3u;
+    if d[kz] < 0.0 {
+        let tmp = kx;
+        kx = ky;
+        ky = tmp;
+    }
+    let sz = 1.0 / d[kz];
+    return Shear(vec3<u32>(kx, ky, kz), vec3<f32>(d[kx] * sz, d[ky] * sz, sz));
+}
+
+// Hit distance in (tmin, tmax), or -1 when missed.
+fn triangle_intersect(tri: Triangle, o: vec3<f32>, sh: Shear, tmin: f32, tmax: f32) -> f32 {
+    let a = tri.va - o;
+    let b = tri.vb - o;
+    let c = tri.vc - o;
+    let kx = sh.k.x;
+    let ky = sh.k.y;
+    let kz = sh.k.z;
+    let ax = a[kx] - sh.s.x * a[kz];
+    let ay = a[ky] - sh.s.y * a[kz];
+    let bx = b[kx] - sh.s.x * b[kz];
+    let by = b[ky] - sh.s.y * b[kz];
+    let cx = c[kx] - sh.s.x * c[kz];
+    let cy = c[ky] - sh.s.y * c[kz];
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return -1.0;
+    }
+    let det = u + v + w;
+    if det == 0.0 {
+        return -1.0;
+    }
+    let az = sh.s.z * a[kz];
+    let bz = sh.s.z * b[kz];
+    let cz = sh.s.z * c[kz];
+    let t = (u * az + v * bz + w * cz) / det;
+    if t > tmin && t < tmax {
+        return t;
+    }
+    return -1.0;
+}
+
+fn triangle_roots(tri: Triangle, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots {
+    var roots = roots_empty();
+    let t = triangle_intersect(tri, o, shear_new(d), tmin, tmax);
+    if t >= 0.0 {
+        roots_push(&roots, t, PART_SURFACE, tmin, tmax);
+    }
+    return roots;
+}
+
+fn triangle_normal(tri: Triangle) -> vec3<f32> {
+    return normalize(cross(tri.vb - tri.va, tri.vc - tri.va));
+}

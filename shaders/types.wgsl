@@ -1,0 +1,128 @@
+// Buffer layouts shared by every stage: the twins of the #[repr(C)] structs in
+// src/gpu_types.rs and src/accel/bvh.rs (a test checks sizes and offsets through naga).
+#define_import_path strahl::types
+
+struct Frame {
+    eye: vec3<f32>,
+    width: u32,
+    forward: vec3<f32>,
+    height: u32,
+    right: vec3<f32>,
+    spp: u32,
+    up: vec3<f32>,
+    max_depth: u32,
+    background: vec3<f32>,
+    num_planes: u32,
+    ambient: vec3<f32>,
+    num_lights: u32,
+    tile_origin: vec2<u32>,
+    tile_size: vec2<u32>,
+    sample_base: u32,
+    out_pitch: u32,
+    out_first_row: u32,
+    flags: u32,
+}
+
+struct Sphere {
+    center: vec3<f32>,
+    radius: f32,
+    object: u32,
+    prim: u32,
+    material: u32,
+    pad: u32,
+}
+
+struct Cylinder {
+    // p1 and p2 of the lecture (naga renames members that end in a digit).
+    pa: vec3<f32>,
+    radius: f32,
+    pb: vec3<f32>,
+    caps: u32,
+    object: u32,
+    prim: u32,
+    material: u32,
+    pad: u32,
+}
+
+struct Plane {
+    point: vec3<f32>,
+    object: u32,
+    normal: vec3<f32>,
+    material: u32,
+}
+
+struct Triangle {
+    va: vec3<f32>,
+    object: u32,
+    vb: vec3<f32>,
+    prim: u32,
+    vc: vec3<f32>,
+    material: u32,
+}
+
+struct BvhNode {
+    bmin: vec3<f32>,
+    left_or_first: u32,
+    bmax: vec3<f32>,
+    count: u32,
+}
+
+struct Material {
+    color: vec3<f32>,
+    kind: u32,
+    radiance: vec3<f32>,
+    ior: f32,
+}
+
+struct Light {
+    vector: vec3<f32>,
+    kind: u32,
+    intensity: vec3<f32>,
+    pad: u32,
+}
+
+struct QueryRay {
+    origin: vec3<f32>,
+    tmin: f32,
+    dir: vec3<f32>,
+    tmax: f32,
+}
+
+struct QueryHit {
+    normal: vec3<f32>,
+    t: f32,
+    object: u32,
+    prim: u32,
+    prim_ref: u32,
+    flags: u32,
+}
+
+// PrimRef: kind in bits 30-31 (src/primitives.rs).
+const KIND_SPHERE: u32 = 0u;
+const KIND_CYLINDER: u32 = 1u;
+const KIND_TRIANGLE: u32 = 2u;
+const KIND_PLANE: u32 = 3u;
+const INDEX_BITS: u32 = 30u;
+const INDEX_MASK: u32 = 0x3fffffffu;
+
+// Part of a surface (geometry::Part).
+const PART_SURFACE: u32 = 0u;
+const PART_CAP_P1: u32 = 1u;
+const PART_CAP_P2: u32 = 2u;
+
+// MaterialKind.
+const MAT_DIFFUSE: u32 = 0u;
+const MAT_MIRROR: u32 = 1u;
+const MAT_DIELECTRIC: u32 = 2u;
+const MAT_EMISSIVE: u32 = 3u;
+
+const LIGHT_POINT: u32 = 0u;
+const LIGHT_DIRECTIONAL: u32 = 1u;
+
+const FRAME_ACCUMULATE: u32 = 1u;
+const QUERY_FOUND: u32 = 1u;
+const QUERY_ENTER: u32 = 2u;
+
+// The largest f32: stands for "no upper bound" (WGSL cannot spell infinity). Roots are
+// compared with `t < tmax`, so FLT_MAX and +inf reject exactly the same values.
+const F32_MAX: f32 = 3.40282347e38;

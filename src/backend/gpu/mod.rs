@@ -1,0 +1,281 @@
+//! The GPU backend: WGSL compute shaders through wgpu (Vulkan).
+//!
+//! [`GpuContext`] owns the device and caches one pipeline per (program, [`FeatureKey`]);
+//! [`SceneBuffers`] holds a scene's storage buffers; [`render`] and [`trace`] dispatch.
+
+pub mod render;
+pub mod shaders;
+pub mod trace;
+
+pub use shaders::{FeatureKey, Program};
+
+use crate::gpu_types::{GpuFrame, GpuScene};
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use wgpu::util::DeviceExt;
+
+/// How to get a Vulkan driver when none is found.
+pub const NO_ADAPTER_HINT: &str = "no Vulkan adapter found. Install a Vulkan driver; on Debian/Ubuntu the \
+     software one is `apt-get install mesa-vulkan-drivers` (lavapipe), or use --backend cpu";
+
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error("{NO_ADAPTER_HINT}")]
+    NoAdapter,
+    #[error("cannot open the GPU device: {0}")]
+    Device(String),
+    #[error(transparent)]
+    Shader(#[from] shaders::ShaderError),
+    #[error("{what} needs {need} bytes, more than this adapter allows in one buffer ({limit} bytes)")]
+    TooLarge { what: String, need: u64, limit: u64 },
+    #[error("GPU error: {0}")]
+    Wgpu(String),
+}
+
+/// A compiled pipeline and what compiling it cost.
+pub struct CachedPipeline {
+    pub pipeline: wgpu::ComputePipeline,
+    /// Composition (naga_oil) plus pipeline creation (driver compile).
+    pub compile_time: Duration,
+}
+
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub adapter_info: wgpu::AdapterInfo,
+    pub limits: wgpu::Limits,
+    /// Whether per-dispatch timestamp queries are available.
+    pub timestamps: bool,
+    scene_layout: wgpu::BindGroupLayout,
+    render_layout: wgpu::BindGroupLayout,
+    trace_layout: wgpu::BindGroupLayout,
+    pipelines: Mutex<HashMap<(Program, FeatureKey, &'static str), Arc<CachedPipeline>>>,
+}
+
+fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl GpuContext {
+    /// Opens the first Vulkan adapter (a discrete GPU preferred).
+    pub fn new() -> Result<Self, GpuError> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        desc.backends = wgpu::Backends::VULKAN;
+        let instance = wgpu::Instance::new(desc);
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            ..Default::default()
+        }))
+        .map_err(|_| GpuError::NoAdapter)?;
+        Self::from_adapter(&adapter)
+    }
+
+    pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
+        let limits = adapter.limits();
+        if limits.max_storage_buffers_per_shader_stage < 11 {
+            return Err(GpuError::Device(format!(
+                "strahl needs 11 storage buffers per shader stage, this adapter offers {}",
+                limits.max_storage_buffers_per_shader_stage
+            )));
+        }
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let required_features = if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() };
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("strahl"),
+            required_features,
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::Device(e.to_string()))?;
+        let uniform = wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let mut scene_entries = vec![uniform];
+        scene_entries.extend((1..=8).map(|b| storage_entry(b, true)));
+        let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("scene"),
+            entries: &scene_entries,
+        });
+        let render_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("render output"),
+            entries: &[storage_entry(0, false)],
+        });
+        let trace_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("trace io"),
+            entries: &[storage_entry(0, true), storage_entry(1, false), storage_entry(2, false)],
+        });
+        Ok(Self {
+            device,
+            queue,
+            adapter_info: adapter.get_info(),
+            limits,
+            timestamps,
+            scene_layout,
+            render_layout,
+            trace_layout,
+            pipelines: Mutex::new(HashMap::new()),
+        })
+    }
+
+    /// "name (backend, driver)".
+    pub fn adapter_name(&self) -> String {
+        let i = &self.adapter_info;
+        format!("{} ({:?}, {} {})", i.name, i.backend, i.driver, i.driver_info)
+    }
+
+    /// The pipeline for `entry` of `program` specialised to `key`, compiled on first use.
+    pub fn pipeline(&self, program: Program, key: FeatureKey, entry: &'static str) -> Result<Arc<CachedPipeline>, GpuError> {
+        let key = key.for_program(program);
+        if let Some(p) = self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)) {
+            return Ok(p.clone());
+        }
+        let start = Instant::now();
+        let module = shaders::compose(program, key)?;
+        shaders::validate(program, key, &module)?;
+        let shader = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(entry),
+            source: wgpu::ShaderSource::Naga(std::borrow::Cow::Owned(module)),
+        });
+        let io_layout = match program {
+            Program::Render => &self.render_layout,
+            Program::Trace => &self.trace_layout,
+        };
+        let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(entry),
+            bind_group_layouts: &[Some(&self.scene_layout), Some(io_layout)],
+            immediate_size: 0,
+        });
+        let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: Some(&layout),
+            module: &shader,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let cached = Arc::new(CachedPipeline { pipeline, compile_time: start.elapsed() });
+        self.pipelines.lock().expect("pipeline cache lock").insert((program, key, entry), cached.clone());
+        Ok(cached)
+    }
+
+    /// Fails with a clear error before allocating when `bytes` exceed one storage binding.
+    pub fn check_binding_size(&self, what: &str, bytes: u64) -> Result<(), GpuError> {
+        let limit = (self.limits.max_storage_buffer_binding_size as u64).min(self.limits.max_buffer_size);
+        if bytes > limit {
+            return Err(GpuError::TooLarge { what: what.to_string(), need: bytes, limit });
+        }
+        Ok(())
+    }
+
+    /// A storage buffer holding `data`; an empty slice gets a one-element buffer of 0xFF bytes
+    /// (NaN floats), which no intersection routine can hit, for variants that still bind it.
+    pub fn storage_buffer<T: bytemuck::Pod>(&self, what: &str, data: &[T]) -> Result<wgpu::Buffer, GpuError> {
+        let bytes: Vec<u8> = if data.is_empty() {
+            vec![0xFF; std::mem::size_of::<T>().max(4)]
+        } else {
+            bytemuck::cast_slice(data).to_vec()
+        };
+        self.check_binding_size(what, bytes.len() as u64)?;
+        Ok(self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(what),
+            contents: &bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        }))
+    }
+
+    /// Copies `size` bytes of `src` to the host (blocking).
+    pub fn read_buffer(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+        self.queue.submit([enc.finish()]);
+        let slice = staging.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Wgpu(e.to_string()))?;
+        rx.recv()
+            .map_err(|e| GpuError::Wgpu(e.to_string()))?
+            .map_err(|e| GpuError::Wgpu(e.to_string()))?;
+        let data = slice.get_mapped_range().map_err(|e| GpuError::Wgpu(e.to_string()))?.to_vec();
+        staging.unmap();
+        Ok(data)
+    }
+}
+
+/// A scene's storage buffers on the device (bind group 0, without the frame uniform's
+/// contents, which change per dispatch).
+pub struct SceneBuffers {
+    pub key: FeatureKey,
+    pub frame: wgpu::Buffer,
+    pub bind_group: wgpu::BindGroup,
+    /// Bytes uploaded.
+    pub bytes: u64,
+    has_bvh: bool,
+}
+
+impl SceneBuffers {
+    pub fn upload(ctx: &GpuContext, g: &GpuScene) -> Result<Self, GpuError> {
+        let buffers = [
+            ctx.storage_buffer("spheres", &g.spheres)?,
+            ctx.storage_buffer("cylinders", &g.cylinders)?,
+            ctx.storage_buffer("planes", &g.planes)?,
+            ctx.storage_buffer("triangles", &g.triangles)?,
+            ctx.storage_buffer("BVH nodes", &g.nodes)?,
+            ctx.storage_buffer("primitive references", &g.prim_refs)?,
+            ctx.storage_buffer("materials", &g.materials)?,
+            ctx.storage_buffer("lights", &g.lights)?,
+        ];
+        let frame = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame"),
+            size: std::mem::size_of::<GpuFrame>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: frame.as_entire_binding() }];
+        entries.extend(
+            buffers.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: b.as_entire_binding() }),
+        );
+        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("scene"),
+            layout: &ctx.scene_layout,
+            entries: &entries,
+        });
+        Ok(Self {
+            key: FeatureKey::for_scene(g),
+            frame,
+            bind_group,
+            bytes: buffers.iter().map(|b| b.size()).sum(),
+            has_bvh: !g.nodes.is_empty(),
+        })
+    }
+
+    /// Whether a variant compiled with `key` can run on this scene: it must contain every
+    /// feature the scene uses, and walk a BVH only if the scene has one.
+    pub fn runs_with(&self, key: FeatureKey) -> bool {
+        (key.0 & self.key.0) == self.key.0 && (!key.has(FeatureKey::BVH) || self.has_bvh)
+    }
+}

@@ -1,0 +1,181 @@
+//! Rendering on the GPU: the image is split into bands that fit one storage binding, each band
+//! into tiles of at most [`TILE`]×[`TILE`] pixels, one dispatch per tile and sample pass, so
+//! no dispatch runs for long.
+
+use super::{FeatureKey, GpuContext, GpuError, Program, SceneBuffers};
+use crate::gpu_types::{FRAME_ACCUMULATE, GpuFrame};
+use crate::image::Image;
+use std::time::{Duration, Instant};
+
+/// Tile side in pixels.
+pub const TILE: u32 = 128;
+const WORKGROUP: u32 = 8;
+const PIXEL_BYTES: u64 = 16;
+
+/// What a GPU render measured.
+#[derive(Clone, Debug, Default)]
+pub struct RenderStats {
+    /// Wall time of the dispatches and readback.
+    pub wall: Duration,
+    /// Sum of per-dispatch GPU times from timestamp queries, if the adapter has them.
+    pub gpu_time: Option<Duration>,
+    pub dispatches: u32,
+    /// Time spent compiling the pipeline (zero when it was cached).
+    pub compile_time: Duration,
+    pub key: FeatureKey,
+}
+
+/// Renders `frame` (whole image; `spp` samples, one pass per sample) with the pipeline for
+/// `key`, which must contain the scene's features ([`SceneBuffers::runs_with`]).
+/// `progress(done, total)` is called after each sample pass of each band.
+pub fn render(
+    ctx: &GpuContext,
+    scene: &SceneBuffers,
+    frame: &GpuFrame,
+    key: FeatureKey,
+    progress: &dyn Fn(u64, u64),
+) -> Result<(Image, RenderStats), GpuError> {
+    assert!(scene.runs_with(key), "variant {} cannot render a scene needing {}", key.label(), scene.key.label());
+    let was_cached = ctx.pipelines.lock().expect("cache").contains_key(&(Program::Render, key, "render"));
+    let pipe = ctx.pipeline(Program::Render, key, "render")?;
+    let start = Instant::now();
+    let (w, h) = (frame.width, frame.height);
+    let row_bytes = w as u64 * PIXEL_BYTES;
+    let limit = (ctx.limits.max_storage_buffer_binding_size as u64).min(ctx.limits.max_buffer_size);
+    if row_bytes > limit {
+        return Err(GpuError::TooLarge { what: format!("one {w}-pixel image row"), need: row_bytes, limit });
+    }
+    let mut band_rows = (limit / row_bytes).min(h as u64) as u32;
+    if band_rows < h && band_rows >= TILE {
+        band_rows -= band_rows % TILE;
+    }
+    let output = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("render output"),
+        size: band_rows as u64 * row_bytes,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let out_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("render output"),
+        layout: &ctx.render_layout,
+        entries: &[wgpu::BindGroupEntry { binding: 0, resource: output.as_entire_binding() }],
+    });
+    let tiles_x = w.div_ceil(TILE);
+    let max_tiles = tiles_x * band_rows.div_ceil(TILE);
+    let timer = ctx.timestamps.then(|| Timer::new(ctx, max_tiles));
+    let mut img = Image::new(w, h);
+    let mut stats = RenderStats { key, dispatches: 0, ..Default::default() };
+    let mut gpu_ns = 0.0f64;
+    let total_steps = h.div_ceil(band_rows) as u64 * frame.spp as u64;
+    let mut step = 0u64;
+    let mut row0 = 0u32;
+    while row0 < h {
+        let rows = band_rows.min(h - row0);
+        for s in 0..frame.spp {
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            let mut n_tiles = 0u32;
+            for ty in (row0..row0 + rows).step_by(TILE as usize) {
+                for tx in (0..w).step_by(TILE as usize) {
+                    let tile = GpuFrame {
+                        tile_origin: [tx, ty],
+                        tile_size: [TILE.min(w - tx), TILE.min(row0 + rows - ty)],
+                        sample_base: frame.sample_base + s,
+                        spp: 1,
+                        out_pitch: w,
+                        out_first_row: row0,
+                        flags: if s > 0 { FRAME_ACCUMULATE } else { 0 },
+                        ..*frame
+                    };
+                    // Each tile needs its own uniforms: a small per-tile buffer copied into the
+                    // frame uniform right before its dispatch, in command order.
+                    let staging = wgpu::util::DeviceExt::create_buffer_init(
+                        &ctx.device,
+                        &wgpu::util::BufferInitDescriptor {
+                            label: Some("tile frame"),
+                            contents: bytemuck::bytes_of(&tile),
+                            usage: wgpu::BufferUsages::COPY_SRC,
+                        },
+                    );
+                    enc.copy_buffer_to_buffer(&staging, 0, &scene.frame, 0, std::mem::size_of::<GpuFrame>() as u64);
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("render tile"),
+                        timestamp_writes: timer.as_ref().map(|t| t.writes(n_tiles)),
+                    });
+                    pass.set_pipeline(&pipe.pipeline);
+                    pass.set_bind_group(0, &scene.bind_group, &[]);
+                    pass.set_bind_group(1, &out_group, &[]);
+                    pass.dispatch_workgroups(tile.tile_size[0].div_ceil(WORKGROUP), tile.tile_size[1].div_ceil(WORKGROUP), 1);
+                    drop(pass);
+                    n_tiles += 1;
+                }
+            }
+            if let Some(t) = &timer {
+                t.resolve(&mut enc, n_tiles);
+            }
+            ctx.queue.submit([enc.finish()]);
+            if let Some(t) = &timer {
+                gpu_ns += t.read(ctx, n_tiles)?;
+            }
+            stats.dispatches += n_tiles;
+            step += 1;
+            progress(step, total_steps);
+        }
+        let bytes = ctx.read_buffer(&output, rows as u64 * row_bytes)?;
+        let px: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+        let spp = frame.spp as f32;
+        for (i, p) in px.iter().enumerate() {
+            img.pixels[row0 as usize * w as usize + i] = [p[0] / spp, p[1] / spp, p[2] / spp];
+        }
+        row0 += rows;
+    }
+    stats.wall = start.elapsed();
+    stats.gpu_time = timer.map(|_| Duration::from_nanos(gpu_ns as u64));
+    stats.compile_time = if was_cached { Duration::ZERO } else { pipe.compile_time };
+    Ok((img, stats))
+}
+
+/// Timestamp queries around each dispatch of one submission.
+pub(super) struct Timer {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    period_ns: f64,
+}
+
+impl Timer {
+    pub(super) fn new(ctx: &GpuContext, max_passes: u32) -> Self {
+        let count = 2 * max_passes.max(1);
+        Self {
+            set: ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("dispatch timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count,
+            }),
+            resolve: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamps"),
+                size: count as u64 * 8,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            period_ns: ctx.queue.get_timestamp_period() as f64,
+        }
+    }
+
+    pub(super) fn writes(&self, pass: u32) -> wgpu::ComputePassTimestampWrites<'_> {
+        wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(2 * pass),
+            end_of_pass_write_index: Some(2 * pass + 1),
+        }
+    }
+
+    pub(super) fn resolve(&self, enc: &mut wgpu::CommandEncoder, passes: u32) {
+        enc.resolve_query_set(&self.set, 0..2 * passes, &self.resolve, 0);
+    }
+
+    /// Total nanoseconds of the `passes` dispatches just submitted.
+    pub(super) fn read(&self, ctx: &GpuContext, passes: u32) -> Result<f64, GpuError> {
+        let bytes = ctx.read_buffer(&self.resolve, passes as u64 * 16)?;
+        let ts: &[u64] = bytemuck::cast_slice(&bytes);
+        Ok(ts.chunks(2).map(|p| p[1].saturating_sub(p[0]) as f64 * self.period_ns).sum())
+    }
+}

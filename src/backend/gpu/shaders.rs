@@ -1,0 +1,234 @@
+//! WGSL sources, composed per scene with naga_oil: a scene's [`FeatureKey`] picks the shader
+//! defs, so a variant contains only the primitive, material and light code the scene uses.
+
+use naga_oil::compose::{
+    ComposableModuleDescriptor, Composer, ComposerError, NagaModuleDescriptor, ShaderDefValue, ShaderLanguage,
+    ShaderType,
+};
+use std::collections::HashMap;
+
+use crate::gpu_types::{GpuScene, LIGHT_DIRECTIONAL, LIGHT_POINT};
+use crate::scene::MaterialKind;
+
+/// The shared modules, in import order (each may import only those before it).
+pub const MODULES: &[(&str, &str)] = &[
+    ("shaders/types.wgsl", include_str!("../../../shaders/types.wgsl")),
+    ("shaders/bindings.wgsl", include_str!("../../../shaders/bindings.wgsl")),
+    ("shaders/roots.wgsl", include_str!("../../../shaders/roots.wgsl")),
+    ("shaders/sphere.wgsl", include_str!("../../../shaders/sphere.wgsl")),
+    ("shaders/cylinder.wgsl", include_str!("../../../shaders/cylinder.wgsl")),
+    ("shaders/plane.wgsl", include_str!("../../../shaders/plane.wgsl")),
+    ("shaders/triangle.wgsl", include_str!("../../../shaders/triangle.wgsl")),
+    ("shaders/traverse.wgsl", include_str!("../../../shaders/traverse.wgsl")),
+    ("shaders/spawn.wgsl", include_str!("../../../shaders/spawn.wgsl")),
+    ("shaders/raygen.wgsl", include_str!("../../../shaders/raygen.wgsl")),
+    ("shaders/shade.wgsl", include_str!("../../../shaders/shade.wgsl")),
+];
+
+/// A top-level shader and its entry points.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Program {
+    /// `render.wgsl`: Whitted image, one invocation per pixel.
+    Render,
+    /// `trace.wgsl`: ray queries.
+    Trace,
+}
+
+impl Program {
+    pub fn source(self) -> (&'static str, &'static str) {
+        match self {
+            Program::Render => ("shaders/render.wgsl", include_str!("../../../shaders/render.wgsl")),
+            Program::Trace => ("shaders/trace.wgsl", include_str!("../../../shaders/trace.wgsl")),
+        }
+    }
+}
+
+/// Which code a scene needs. Each flag is a shader def of the same name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct FeatureKey(pub u32);
+
+impl FeatureKey {
+    pub const SPHERES: u32 = 1 << 0;
+    pub const CYLINDERS: u32 = 1 << 1;
+    pub const TRIANGLES: u32 = 1 << 2;
+    pub const PLANES: u32 = 1 << 3;
+    /// Walk the BVH (else test every bounded primitive: tiny scenes).
+    pub const BVH: u32 = 1 << 4;
+    pub const POINT_LIGHTS: u32 = 1 << 5;
+    pub const DIRECTIONAL_LIGHTS: u32 = 1 << 6;
+    pub const MIRROR: u32 = 1 << 7;
+    pub const DIELECTRIC: u32 = 1 << 8;
+    pub const EMISSIVE: u32 = 1 << 9;
+    pub const FLAG_COUNT: u32 = 10;
+    pub const NAMES: [&'static str; 10] = [
+        "SPHERES",
+        "CYLINDERS",
+        "TRIANGLES",
+        "PLANES",
+        "BVH",
+        "POINT_LIGHTS",
+        "DIRECTIONAL_LIGHTS",
+        "MIRROR",
+        "DIELECTRIC",
+        "EMISSIVE",
+    ];
+    /// Flags that change the trace program (it has no shading code).
+    pub const GEOMETRY: u32 = Self::SPHERES | Self::CYLINDERS | Self::TRIANGLES | Self::PLANES | Self::BVH;
+    /// Every feature: the one shader that renders any scene.
+    pub const ALL: FeatureKey = FeatureKey((1 << Self::FLAG_COUNT) - 1);
+
+    /// Scenes with at most this many bounded primitives test them all instead of walking a BVH.
+    pub const BRUTE_FORCE_MAX: usize = 8;
+
+    pub fn for_scene(g: &GpuScene) -> FeatureKey {
+        let mut k = 0;
+        let mut set = |cond: bool, flag: u32| {
+            if cond {
+                k |= flag
+            }
+        };
+        set(!g.spheres.is_empty(), Self::SPHERES);
+        set(!g.cylinders.is_empty(), Self::CYLINDERS);
+        set(!g.triangles.is_empty(), Self::TRIANGLES);
+        set(!g.planes.is_empty(), Self::PLANES);
+        set(g.prim_refs.len() > Self::BRUTE_FORCE_MAX, Self::BVH);
+        set(g.lights.iter().any(|l| l.kind == LIGHT_POINT), Self::POINT_LIGHTS);
+        set(g.lights.iter().any(|l| l.kind == LIGHT_DIRECTIONAL), Self::DIRECTIONAL_LIGHTS);
+        let has = |m: MaterialKind| g.materials.iter().any(|x| x.kind == m as u32);
+        set(has(MaterialKind::Mirror), Self::MIRROR);
+        set(has(MaterialKind::Dielectric), Self::DIELECTRIC);
+        set(has(MaterialKind::Emissive), Self::EMISSIVE);
+        FeatureKey(k)
+    }
+
+    pub fn has(self, flag: u32) -> bool {
+        self.0 & flag != 0
+    }
+
+    /// The key as the program sees it: the trace program ignores shading flags.
+    pub fn for_program(self, p: Program) -> FeatureKey {
+        match p {
+            Program::Render => self,
+            Program::Trace => FeatureKey(self.0 & Self::GEOMETRY),
+        }
+    }
+
+    pub fn shader_defs(self) -> HashMap<String, ShaderDefValue> {
+        let mut defs: HashMap<String, ShaderDefValue> = (0..Self::FLAG_COUNT)
+            .filter(|i| self.0 & (1 << i) != 0)
+            .map(|i| (Self::NAMES[i as usize].to_string(), ShaderDefValue::Bool(true)))
+            .collect();
+        if self.has(Self::POINT_LIGHTS | Self::DIRECTIONAL_LIGHTS) {
+            defs.insert("LIGHTS".into(), ShaderDefValue::Bool(true));
+        }
+        defs
+    }
+
+    /// Readable form, e.g. `SPHERES+BVH+POINT_LIGHTS`.
+    pub fn label(self) -> String {
+        let names: Vec<&str> =
+            (0..Self::FLAG_COUNT).filter(|i| self.0 & (1 << i) != 0).map(|i| Self::NAMES[i as usize]).collect();
+        if names.is_empty() { "EMPTY".into() } else { names.join("+") }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ShaderError {
+    #[error("composing {file}: {message}")]
+    Compose { file: String, message: String },
+    #[error("validating the {program:?} shader for {key}: {message}")]
+    Validate { program: Program, key: String, message: String },
+}
+
+fn compose_error(e: &ComposerError) -> String {
+    // naga_oil's errors need the sources to print spans; keep its own message.
+    format!("{e:?}")
+}
+
+/// Composes `program` for `key` into a naga module.
+pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, ShaderError> {
+    let key = key.for_program(program);
+    let defs = key.shader_defs();
+    let mut composer = Composer::default();
+    for (file, src) in MODULES {
+        composer
+            .add_composable_module(ComposableModuleDescriptor {
+                source: src,
+                file_path: file,
+                language: ShaderLanguage::Wgsl,
+                shader_defs: defs.clone(),
+                ..Default::default()
+            })
+            .map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e) })?;
+    }
+    let (file, src) = program.source();
+    composer
+        .make_naga_module(NagaModuleDescriptor {
+            source: src,
+            file_path: file,
+            shader_type: ShaderType::Wgsl,
+            shader_defs: defs,
+            ..Default::default()
+        })
+        .map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e) })
+}
+
+/// Validates a composed module with every check naga has; returns its module info.
+pub fn validate(program: Program, key: FeatureKey, module: &naga::Module) -> Result<naga::valid::ModuleInfo, ShaderError> {
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+        .validate(module)
+        .map_err(|e| ShaderError::Validate { program, key: key.label(), message: format!("{:?}", e.into_inner()) })
+}
+
+/// The composed module as WGSL text (for inspection and tests).
+pub fn to_wgsl(module: &naga::Module, info: &naga::valid::ModuleInfo) -> String {
+    naga::back::wgsl::write_string(module, info, naga::back::wgsl::WriterFlags::empty())
+        .unwrap_or_else(|e| format!("// cannot print this module as WGSL: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_feature_key_composes_and_validates() {
+        use rayon::prelude::*;
+        let failures: Vec<String> = (0..(1u32 << FeatureKey::FLAG_COUNT))
+            .into_par_iter()
+            .flat_map_iter(|bits| {
+                let key = FeatureKey(bits);
+                [Program::Render, Program::Trace]
+                    .into_iter()
+                    .filter(move |&p| p == Program::Render || key.for_program(p) == key)
+                    .filter_map(move |p| match compose(p, key) {
+                        Ok(m) => validate(p, key, &m).err().map(|e| e.to_string()),
+                        Err(e) => Some(format!("{}: {e}", key.label())),
+                    })
+            })
+            .collect();
+        assert!(failures.is_empty(), "{} variants fail, first: {}", failures.len(), failures[0]);
+    }
+
+    #[test]
+    fn a_sphere_only_shader_contains_no_other_primitive_code() {
+        let key = FeatureKey(FeatureKey::SPHERES | FeatureKey::POINT_LIGHTS);
+        let m = compose(Program::Render, key).unwrap();
+        let text = to_wgsl(&m, &validate(Program::Render, key, &m).unwrap());
+        assert!(text.contains("sphere_roots"), "the sphere code is there");
+        // Case-sensitive identifiers of other primitives' code and types (naga_oil's name
+        // decorations are upper-case base32 and cannot spell them).
+        let absent_items = [
+            "Cylinder", "cylinder_roots", "cap_root", "Triangle", "triangle_intersect", "Shear", "Plane", "plane_roots",
+            "refract", "fresnel", "BvhNode", "slab", "nodes",
+        ];
+        for absent in absent_items {
+            assert!(!text.contains(absent), "{absent} found in the sphere-only shader");
+        }
+        let all = compose(Program::Render, FeatureKey::ALL).unwrap();
+        let all_text = to_wgsl(&all, &validate(Program::Render, FeatureKey::ALL, &all).unwrap());
+        for present in ["cylinder_roots", "triangle_intersect", "plane_roots", "fresnel_dielectric", "slab"] {
+            assert!(all_text.contains(present), "{present} missing from the all-features shader");
+        }
+        assert!(text.len() * 2 < all_text.len(), "{} vs {} bytes", text.len(), all_text.len());
+    }
+}
