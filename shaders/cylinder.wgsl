@@ -38,8 +38,9 @@ fn cylinder_roots(cy: Cylinder, ro: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f3
         if alpha0 >= 0.0 && alpha0 <= 1.0 {
             roots_push(&roots, q.x, PART_SURFACE, tmin, tmax);
         }
+        // A tangent ray's double root is one point of contact, reported once.
         let alpha1 = (o_axial + q.y * d_axial) / len;
-        if alpha1 >= 0.0 && alpha1 <= 1.0 {
+        if q.y != q.x && alpha1 >= 0.0 && alpha1 <= 1.0 {
             roots_push(&roots, q.y, PART_SURFACE, tmin, tmax);
         }
     }

@@ -12,7 +12,8 @@
 
 // Depth of the explicit ray stack (render::shade::WHITTED_STACK).
 const WHITTED_STACK: u32 = 16u;
-// Dielectrics a shadow ray may cross (render::shade::SHADOW_PASSES).
+// Traversals a shadow ray may make: it crosses at most SHADOW_PASSES - 1 dielectric surfaces
+// (render::shade::SHADOW_PASSES).
 const SHADOW_PASSES: u32 = 8u;
 const INV_PI: f32 = 0.31830988618379067;
 

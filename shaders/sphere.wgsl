@@ -16,7 +16,10 @@ fn sphere_roots(s: Sphere, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> 
     let q = stable_quadratic(a, beta, c, disc);
     if q.z != 0.0 {
         roots_push(&roots, q.x, PART_SURFACE, tmin, tmax);
-        roots_push(&roots, q.y, PART_SURFACE, tmin, tmax);
+        // A tangent ray's double root is one point of contact, reported once.
+        if q.y != q.x {
+            roots_push(&roots, q.y, PART_SURFACE, tmin, tmax);
+        }
     }
     return roots;
 }

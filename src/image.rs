@@ -48,12 +48,10 @@ impl Image {
     pub fn save(&self, path: &Path) -> Result<()> {
         let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         match ext.as_deref() {
-            Some("png") => {
-                image::RgbImage::from_raw(self.width, self.height, self.to_srgb8())
-                    .context("image buffer size mismatch")?
-                    .save(path)
-                    .with_context(|| format!("cannot write {}", path.display()))
-            }
+            Some("png") => image::RgbImage::from_raw(self.width, self.height, self.to_srgb8())
+                .context("image buffer size mismatch")?
+                .save(path)
+                .with_context(|| format!("cannot write {}", path.display())),
             Some("exr") => {
                 let data: Vec<f32> = self.pixels.iter().flatten().copied().collect();
                 image::Rgb32FImage::from_raw(self.width, self.height, data)
@@ -71,10 +69,7 @@ impl Image {
         let is_exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
         let rgb = img.to_rgb32f();
         let (width, height) = rgb.dimensions();
-        let pixels = rgb
-            .pixels()
-            .map(|p| if is_exr { p.0 } else { p.0.map(srgb_to_linear) })
-            .collect();
+        let pixels = rgb.pixels().map(|p| if is_exr { p.0 } else { p.0.map(srgb_to_linear) }).collect();
         Ok(Image { width, height, pixels })
     }
 }

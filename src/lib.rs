@@ -4,13 +4,17 @@
 //! Data flows one way: scene file → [`scene::Scene`] → [`primitives::Primitives`] →
 //! [`accel::Bvh`] → a backend ([`cpu`] or `gpu`) → [`image::Image`] → output or metrics.
 
+// `!(x >= 0.0)` is used on purpose throughout: unlike `x < 0.0` it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod accel;
-pub mod geometry;
-pub mod math;
-pub mod primitives;
-pub mod scene;
 pub mod backend;
+pub mod geometry;
 pub mod gpu_types;
 pub mod image;
-pub mod render;
+pub mod math;
+pub mod metrics;
+pub mod primitives;
 pub mod query;
+pub mod render;
+pub mod scene;

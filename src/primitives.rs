@@ -108,11 +108,7 @@ pub fn next_up<R: Real>(v: R) -> R {
     if !f.is_finite() {
         return v;
     }
-    if std::mem::size_of::<R>() == 4 {
-        R::from_f64((f as f32).next_up() as f64)
-    } else {
-        R::from_f64(f.next_up())
-    }
+    if std::mem::size_of::<R>() == 4 { R::from_f64((f as f32).next_up() as f64) } else { R::from_f64(f.next_up()) }
 }
 
 #[derive(Clone, Debug, Default)]
@@ -152,6 +148,19 @@ impl<R: Real> Primitives<R> {
             }
         }
         p
+    }
+
+    /// The same primitives rounded to another precision.
+    pub fn cast<S: Real>(&self) -> Primitives<S> {
+        fn each<T: Copy, U>(v: &[Tagged<T>], f: impl Fn(&T) -> U) -> Vec<Tagged<U>> {
+            v.iter().map(|t| Tagged { shape: f(&t.shape), tag: t.tag }).collect()
+        }
+        Primitives {
+            spheres: each(&self.spheres, |s| s.cast()),
+            cylinders: each(&self.cylinders, |c| c.cast()),
+            triangles: each(&self.triangles, |t| t.cast()),
+            planes: each(&self.planes, |p| p.cast()),
+        }
     }
 
     /// Every bounded primitive, in [`PrimRef`] order.

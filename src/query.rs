@@ -39,11 +39,18 @@ pub struct RaysError {
 
 /// Reads a rays CSV file (size-checked before reading).
 pub fn read_rays(path: &Path) -> anyhow::Result<Vec<RayQuery>> {
-    let meta = std::fs::metadata(path).map_err(|e| anyhow::anyhow!("{}: cannot read rays file: {e}", path.display()))?;
+    let meta =
+        std::fs::metadata(path).map_err(|e| anyhow::anyhow!("{}: cannot read rays file: {e}", path.display()))?;
     if meta.len() > MAX_RAYS_FILE_BYTES {
-        anyhow::bail!("{}: rays file is {} bytes; at most {} are accepted", path.display(), meta.len(), MAX_RAYS_FILE_BYTES);
+        anyhow::bail!(
+            "{}: rays file is {} bytes; at most {} are accepted",
+            path.display(),
+            meta.len(),
+            MAX_RAYS_FILE_BYTES
+        );
     }
-    let text = std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("{}: cannot read rays file: {e}", path.display()))?;
+    let text =
+        std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("{}: cannot read rays file: {e}", path.display()))?;
     Ok(parse_rays(&text, &path.display().to_string())?)
 }
 
@@ -51,13 +58,17 @@ pub fn read_rays(path: &Path) -> anyhow::Result<Vec<RayQuery>> {
 pub fn parse_rays(text: &str, file: &str) -> Result<Vec<RayQuery>, RaysError> {
     let err = |line: usize, message: String| RaysError { file: file.to_string(), line, message };
     let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim())).filter(|(_, l)| !l.is_empty());
-    let (hline, header) = lines.next().ok_or_else(|| err(1, "empty file: expected the header ox,oy,oz,dx,dy,dz[,tmin,tmax]".into()))?;
+    let (hline, header) =
+        lines.next().ok_or_else(|| err(1, "empty file: expected the header ox,oy,oz,dx,dy,dz[,tmin,tmax]".into()))?;
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
     const KNOWN: [&str; 8] = ["ox", "oy", "oz", "dx", "dy", "dz", "tmin", "tmax"];
     let mut col = [usize::MAX; 8];
     for (i, name) in names.iter().enumerate() {
         let Some(k) = KNOWN.iter().position(|k| k == name) else {
-            return Err(err(hline, format!("unknown column \"{name}\"; expected ox,oy,oz,dx,dy,dz and optionally tmin,tmax")));
+            return Err(err(
+                hline,
+                format!("unknown column \"{name}\"; expected ox,oy,oz,dx,dy,dz and optionally tmin,tmax"),
+            ));
         };
         if col[k] != usize::MAX {
             return Err(err(hline, format!("column \"{name}\" appears twice")));

@@ -29,45 +29,24 @@ fn every_bad_scene_fails_with_its_expected_error() {
             .strip_prefix("# expect: ")
             .unwrap_or_else(|| panic!("{}: first line must be `# expect: ...`", path.display()));
         match Scene::load(path) {
-            Ok(_) => failures.push(format!(
-                "{}: loaded, expected error {expect:?}",
-                path.display()
-            )),
+            Ok(_) => failures.push(format!("{}: loaded, expected error {expect:?}", path.display())),
             Err(e) => {
                 let msg = e.to_string();
                 eprintln!("{msg}"); // the whole corpus's messages, with --nocapture
                 let want = format!("{}:{expect}", path.display());
                 if !msg.starts_with(&want) || !msg.contains(&path.display().to_string()) {
-                    failures.push(format!(
-                        "{}:\n  got  {msg}\n  want {want}...",
-                        path.display()
-                    ));
+                    failures.push(format!("{}:\n  got  {msg}\n  want {want}...", path.display()));
                 }
             }
         }
     }
-    assert!(
-        failures.is_empty(),
-        "{} of {} failed:\n{}",
-        failures.len(),
-        files.len(),
-        failures.join("\n")
-    );
+    assert!(failures.is_empty(), "{} of {} failed:\n{}", failures.len(), files.len(), failures.join("\n"));
 }
 
 #[test]
 fn mesh_errors_name_the_mesh_file() {
     let e = Scene::load("tests/bad_scenes/mesh_missing_file.toml").unwrap_err();
-    let SceneError::Mesh {
-        mesh,
-        field,
-        line,
-        column,
-        ..
-    } = &e
-    else {
-        panic!("{e}")
-    };
+    let SceneError::Mesh { mesh, field, line, column, .. } = &e else { panic!("{e}") };
     assert_eq!(mesh, Path::new("tests/bad_scenes/no_such_mesh.obj"));
     assert_eq!((field.as_str(), *line, *column), ("objects[0].file", 12, 8));
 }
@@ -76,10 +55,7 @@ fn mesh_errors_name_the_mesh_file() {
 fn missing_scene_file_is_an_io_error() {
     let e = Scene::load("tests/bad_scenes/does_not_exist.toml").unwrap_err();
     assert!(matches!(e, SceneError::Io { .. }), "{e}");
-    assert!(
-        e.to_string()
-            .starts_with("tests/bad_scenes/does_not_exist.toml: cannot read scene file")
-    );
+    assert!(e.to_string().starts_with("tests/bad_scenes/does_not_exist.toml: cannot read scene file"));
 }
 
 const HEAD: &str = "[camera]\neye = [0, 0, -10]\nlook_at = [0, 0, 0]\nup = [0, 1, 0]\nfov_y = 45\n\
@@ -88,23 +64,14 @@ const HEAD: &str = "[camera]\neye = [0, 0, -10]\nlook_at = [0, 0, 0]\nup = [0, 1
 #[test]
 fn too_many_lights_and_materials() {
     let p = Path::new("big.toml");
-    let lights =
-        "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\n".repeat(1025);
+    let lights = "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\n".repeat(1025);
     let e = strahl::scene::file::parse(&format!("{HEAD}{lights}"), p, Path::new(".")).unwrap_err();
     assert!(matches!(e, SceneError::TooLarge { .. }), "{e}");
-    assert_eq!(
-        e.to_string(),
-        "big.toml: too many lights: 1025 (at most 1024)"
-    );
+    assert_eq!(e.to_string(), "big.toml: too many lights: 1025 (at most 1024)");
 
-    let mats: String = (0..4097)
-        .map(|i| format!("[[materials]]\nname = \"m{i}\"\ntype = \"diffuse\"\n"))
-        .collect();
+    let mats: String = (0..4097).map(|i| format!("[[materials]]\nname = \"m{i}\"\ntype = \"diffuse\"\n")).collect();
     let e = strahl::scene::file::parse(&format!("{HEAD}{mats}"), p, Path::new(".")).unwrap_err();
-    assert_eq!(
-        e.to_string(),
-        "big.toml: too many materials: 4097 (at most 4096)"
-    );
+    assert_eq!(e.to_string(), "big.toml: too many materials: 4097 (at most 4096)");
 }
 
 /// Heavy (about 2.4 GB and several seconds: `toml` holds a million parsed tables), so only on
@@ -113,14 +80,9 @@ fn too_many_lights_and_materials() {
 #[ignore]
 fn too_many_objects() {
     let p = Path::new("big.toml");
-    let objs = "objects = [".to_string()
-        + &"{type=\"sphere\",center=[0,0,0],radius=1},".repeat(1_000_001)
-        + "]\n";
+    let objs = "objects = [".to_string() + &"{type=\"sphere\",center=[0,0,0],radius=1},".repeat(1_000_001) + "]\n";
     let e = strahl::scene::file::parse(&format!("{objs}{HEAD}"), p, Path::new(".")).unwrap_err();
-    assert_eq!(
-        e.to_string(),
-        "big.toml: too many objects: 1000001 (at most 1000000)"
-    );
+    assert_eq!(e.to_string(), "big.toml: too many objects: 1000001 (at most 1000000)");
 }
 
 #[test]
@@ -133,11 +95,7 @@ fn all_shipped_scenes_load() {
         assert!(!s.lights.is_empty(), "{}", path.display());
         let name = path.file_stem().unwrap().to_str().unwrap();
         if !matches!(name, "lecture" | "seed") {
-            assert!(
-                s.image.width <= 320 && s.image.height <= 240,
-                "{}",
-                path.display()
-            );
+            assert!(s.image.width <= 320 && s.image.height <= 240, "{}", path.display());
         }
     }
 }
@@ -153,14 +111,7 @@ fn lecture_scene_is_the_problem_time() {
             g => panic!("{g:?}"),
         })
         .collect();
-    assert_eq!(
-        spheres,
-        [
-            ([0.0, 0.0, 8.0], 5.0),
-            ([0.0, 0.0, 9.0], 3.0),
-            ([0.0, -3.0, 8.0], 2.0)
-        ]
-    );
+    assert_eq!(spheres, [([0.0, 0.0, 8.0], 5.0), ([0.0, 0.0, 9.0], 3.0), ([0.0, -3.0, 8.0], 2.0)]);
     assert_eq!(s.camera.eye.to_array(), [0.0, 0.0, -10.0]);
     assert_eq!((s.image.width, s.image.height), (640, 480));
     let mats: Vec<u32> = s.objects.iter().map(|o| o.material).collect();
@@ -170,65 +121,31 @@ fn lecture_scene_is_the_problem_time() {
 #[test]
 fn seed_scene_matches_the_anchor() {
     let s = Scene::load("assets/scenes/seed.toml").unwrap();
-    let want_fov = 2.0
-        * (28f64.to_radians().tan() * 480.0 / 640.0)
-            .atan()
-            .to_degrees();
-    assert!(
-        (s.camera.fov_y - want_fov).abs() < 1e-12,
-        "{}",
-        s.camera.fov_y
-    );
+    let want_fov = 2.0 * (28f64.to_radians().tan() * 480.0 / 640.0).atan().to_degrees();
+    assert!((s.camera.fov_y - want_fov).abs() < 1e-12, "{}", s.camera.fov_y);
     assert_eq!(s.render.max_depth, 5);
     let kinds: Vec<&str> = s.objects.iter().map(|o| o.geometry.kind().name()).collect();
-    assert_eq!(
-        kinds,
-        [
-            "sphere", "sphere", "sphere", "cylinder", "polygon", "mesh", "polygon"
-        ]
-    );
-    let Geometry::Polygon {
-        triangles: ground, ..
-    } = &s.objects[4].geometry
-    else {
-        panic!()
-    };
+    assert_eq!(kinds, ["sphere", "sphere", "sphere", "cylinder", "polygon", "mesh", "polygon"]);
+    let Geometry::Polygon { triangles: ground, .. } = &s.objects[4].geometry else { panic!() };
     assert!(ground.iter().all(|t| t.face_normal().y > 0.0));
-    let Geometry::Polygon {
-        triangles: quad, ..
-    } = &s.objects[6].geometry
-    else {
-        panic!()
-    };
+    let Geometry::Polygon { triangles: quad, .. } = &s.objects[6].geometry else { panic!() };
     assert!(quad.iter().all(|t| t.face_normal().y < 0.0));
-    let Geometry::Mesh { triangles, .. } = &s.objects[5].geometry else {
-        panic!()
-    };
+    let Geometry::Mesh { triangles, .. } = &s.objects[5].geometry else { panic!() };
     assert_eq!(triangles.len(), 100_000);
     assert_eq!(s.triangle_count(), 100_004);
     // The tilted torus stays centred on (8.5, -2.4, 15).
     let n = (triangles.len() * 3) as f64;
-    let c = triangles.iter().flat_map(|t| t.v).fold([0.0; 3], |a, v| {
-        [a[0] + v.x / n, a[1] + v.y / n, a[2] + v.z / n]
-    });
-    assert!(
-        (c[0] - 8.5).abs() < 1e-3 && (c[1] + 2.4).abs() < 1e-3 && (c[2] - 15.0).abs() < 1e-3,
-        "{c:?}"
-    );
+    let c = triangles.iter().flat_map(|t| t.v).fold([0.0; 3], |a, v| [a[0] + v.x / n, a[1] + v.y / n, a[2] + v.z / n]);
+    assert!((c[0] - 8.5).abs() < 1e-3 && (c[1] + 2.4).abs() < 1e-3 && (c[2] - 15.0).abs() < 1e-3, "{c:?}");
 }
 
 #[test]
 fn shipped_cube_faces_outward() {
     let s = Scene::load("assets/scenes/mesh.toml").unwrap();
-    let Geometry::Mesh { triangles, .. } = &s.objects[0].geometry else {
-        panic!()
-    };
+    let Geometry::Mesh { triangles, .. } = &s.objects[0].geometry else { panic!() };
     assert_eq!(triangles.len(), 12);
     let n = 36.0;
-    let c = triangles
-        .iter()
-        .flat_map(|t| t.v)
-        .fold(strahl::math::V3::zero(), |a, v| a + v / n);
+    let c = triangles.iter().flat_map(|t| t.v).fold(strahl::math::V3::zero(), |a, v| a + v / n);
     for t in triangles {
         let centroid = (t.v[0] + t.v[1] + t.v[2]) / 3.0;
         assert!(t.face_normal().dot(centroid - c) > 0.0, "{t:?}");

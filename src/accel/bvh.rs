@@ -52,16 +52,11 @@ struct Aabb {
 impl Aabb {
     const EMPTY: Aabb = Aabb { lo: [f32::INFINITY; 3], hi: [f32::NEG_INFINITY; 3] };
     fn grow(&mut self, o: &Aabb) {
-        for k in 0..3 {
-            self.lo[k] = self.lo[k].min(o.lo[k]);
-            self.hi[k] = self.hi[k].max(o.hi[k]);
-        }
+        self.lo = std::array::from_fn(|k| self.lo[k].min(o.lo[k]));
+        self.hi = std::array::from_fn(|k| self.hi[k].max(o.hi[k]));
     }
     fn grow_point(&mut self, p: [f32; 3]) {
-        for k in 0..3 {
-            self.lo[k] = self.lo[k].min(p[k]);
-            self.hi[k] = self.hi[k].max(p[k]);
-        }
+        self.grow(&Aabb { lo: p, hi: p });
     }
     fn area(&self) -> f32 {
         if self.lo[0] > self.hi[0] {
@@ -163,10 +158,7 @@ fn build_node(items: &mut [Item], offset: usize, depth: u32) -> BuildNode {
     let mid = if mid == 0 || mid == n { n / 2 } else { mid };
     let (left, right) = items.split_at_mut(mid);
     let (l, r) = if n >= PARALLEL_THRESHOLD {
-        rayon::join(
-            || build_node(left, offset, depth + 1),
-            || build_node(right, offset + mid, depth + 1),
-        )
+        rayon::join(|| build_node(left, offset, depth + 1), || build_node(right, offset + mid, depth + 1))
     } else {
         (build_node(left, offset, depth + 1), build_node(right, offset + mid, depth + 1))
     };
@@ -251,8 +243,8 @@ fn flatten(node: &BuildNode, out: &mut Vec<BvhNode>, depth: u32) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{Sphere, Triangle};
     use crate::geometry::testutil::TestRng;
+    use crate::geometry::{Sphere, Triangle};
     use crate::primitives::{Tag, Tagged};
 
     fn random_triangles(n: usize, seed: u64) -> Primitives<f32> {
@@ -269,7 +261,9 @@ mod tests {
     #[test]
     fn every_primitive_is_in_exactly_one_leaf_inside_its_bounds() {
         let mut prims = random_triangles(5000, 1);
-        prims.spheres.push(Tagged { shape: Sphere { center: V3::new(1.0, 2.0, 3.0), radius: 0.5 }, tag: Tag::default() });
+        prims
+            .spheres
+            .push(Tagged { shape: Sphere { center: V3::new(1.0, 2.0, 3.0), radius: 0.5 }, tag: Tag::default() });
         let bvh = Bvh::build(&prims);
         let mut seen = vec![0u32; bvh.prim_refs.len()];
         for (i, node) in bvh.nodes.iter().enumerate() {

@@ -22,7 +22,7 @@ pub fn safe_inverse<R: Real>(d: V3<R>) -> V3<R> {
 /// operations behind each slab distance, so a box is never missed where its contents are hit.
 #[inline]
 pub fn slab<R: Real>(node: &BvhNode, ray: &Ray<R>, inv: V3<R>, tmin: R, tmax: R) -> Option<R> {
-    let grow = R::ONE + R::from_f64(2.0) * R::gamma(3);
+    let grow = R::ONE + R::from_f64(2.0) * R::gamma_bound(3);
     let mut tnear = tmin;
     let mut tfar = tmax;
     for a in 0..3 {
@@ -41,13 +41,7 @@ pub fn slab<R: Real>(node: &BvhNode, ray: &Ray<R>, inv: V3<R>, tmin: R, tmax: R)
 /// Calls `leaf(first, count)` for every leaf whose box the ray enters within [tmin, bound()],
 /// nearer child first; `bound` is re-read as the search narrows.
 #[inline]
-fn walk<R: Real>(
-    bvh: &Bvh,
-    ray: &Ray<R>,
-    tmin: R,
-    bound: &mut dyn FnMut() -> R,
-    leaf: &mut dyn FnMut(usize, usize),
-) {
+fn walk<R: Real>(bvh: &Bvh, ray: &Ray<R>, tmin: R, bound: &mut dyn FnMut() -> R, leaf: &mut dyn FnMut(usize, usize)) {
     if bvh.nodes.is_empty() {
         return;
     }
@@ -150,25 +144,26 @@ mod tests {
         let mut p = Primitives::<f64>::default();
         let tag = |o: usize| Tag { object: o as u32, prim: 0, material: 0 };
         for i in 0..300 {
-            p.spheres.push(Tagged { shape: Sphere { center: rng.in_cube(50.0), radius: rng.range(0.2, 3.0) }, tag: tag(i) });
+            p.spheres
+                .push(Tagged { shape: Sphere { center: rng.in_cube(50.0), radius: rng.range(0.2, 3.0) }, tag: tag(i) });
         }
         for i in 0..300 {
             let p1 = rng.in_cube(50.0);
             let p2 = p1 + rng.unit_vector() * rng.range(0.5, 6.0);
             let caps = i % 2 == 0;
-            p.cylinders.push(Tagged { shape: Cylinder { p1, p2, radius: rng.range(0.1, 1.5), caps }, tag: tag(300 + i) });
+            p.cylinders
+                .push(Tagged { shape: Cylinder { p1, p2, radius: rng.range(0.1, 1.5), caps }, tag: tag(300 + i) });
         }
         for i in 0..3000 {
             let c = rng.in_cube(50.0);
-            p.triangles.push(Tagged { shape: Triangle { v: [0, 1, 2].map(|_| c + rng.in_cube(2.5)) }, tag: tag(600 + i) });
+            p.triangles
+                .push(Tagged { shape: Triangle { v: [0, 1, 2].map(|_| c + rng.in_cube(2.5)) }, tag: tag(600 + i) });
         }
-        p.planes.push(Tagged { shape: Plane { point: V3::new(0.0, -60.0, 0.0), normal: V3::new(0.0, 1.0, 0.0) }, tag: tag(4000) });
-        let mut f = Primitives::<f32>::default();
-        f.spheres = p.spheres.iter().map(|s| Tagged { shape: s.shape.cast(), tag: s.tag }).collect();
-        f.cylinders = p.cylinders.iter().map(|s| Tagged { shape: s.shape.cast(), tag: s.tag }).collect();
-        f.triangles = p.triangles.iter().map(|s| Tagged { shape: s.shape.cast(), tag: s.tag }).collect();
-        f.planes = p.planes.iter().map(|s| Tagged { shape: s.shape.cast(), tag: s.tag }).collect();
-        f
+        p.planes.push(Tagged {
+            shape: Plane { point: V3::new(0.0, -60.0, 0.0), normal: V3::new(0.0, 1.0, 0.0) },
+            tag: tag(4000),
+        });
+        p.cast()
     }
 
     /// The acceptance test of the BVH: on 100k random rays it returns exactly the hit the
@@ -184,7 +179,13 @@ mod tests {
                 // Axis-parallel rays exercise the slab test's zero components.
                 let mut d = V3::<f64>::zero();
                 let axis = (i / 10) % 3;
-                if axis == 0 { d.x = 1.0 } else if axis == 1 { d.y = -1.0 } else { d.z = 1.0 };
+                if axis == 0 {
+                    d.x = 1.0
+                } else if axis == 1 {
+                    d.y = -1.0
+                } else {
+                    d.z = 1.0
+                };
                 ray_f32(&Ray::new(rng.in_cube(60.0), d))
             } else {
                 ray_f32(&rng.ray_towards(80.0, V3::zero(), 50.0))

@@ -6,7 +6,11 @@ mod trace;
 use clap::{Parser, Subcommand, ValueEnum};
 
 #[derive(Parser, Debug)]
-#[command(name = "strahl", version, about = "A ray tracer on WGSL compute shaders, with a CPU reference that proves it right")]
+#[command(
+    name = "strahl",
+    version,
+    about = "A ray tracer on WGSL compute shaders, with a CPU reference that proves it right"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,

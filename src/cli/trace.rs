@@ -6,6 +6,7 @@ use clap::{Args, ValueEnum};
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
+use strahl::backend::gpu::GpuContext;
 use strahl::math::Real;
 use strahl::query::{HITS_HEADER, RayQuery, read_rays, write_hit_rows};
 use strahl::scene::Scene;
@@ -29,8 +30,10 @@ pub struct TraceArgs {
     /// Every intersection along each ray, sorted by t, instead of the nearest.
     #[arg(long)]
     pub all: bool,
-    #[arg(long, value_enum, default_value = "cpu")]
-    pub backend: BackendChoice,
+    /// Where to trace (default: gpu for f32, falling back to cpu when no Vulkan adapter
+    /// exists; f64 always runs on the cpu).
+    #[arg(long, value_enum)]
+    pub backend: Option<BackendChoice>,
     /// Arithmetic: f32 (the GPU's, and the CPU's mirror of it) or f64 (the CPU oracle).
     #[arg(long, value_enum, default_value = "f32")]
     pub precision: Precision,
@@ -41,10 +44,19 @@ pub fn run(a: TraceArgs) -> Result<()> {
     let rays = read_rays(&a.rays)?;
     let start = Instant::now();
     let csv = match (a.backend, a.precision) {
-        (BackendChoice::Cpu, Precision::F32) => cpu_csv::<f32>(&scene, &rays, a.all),
-        (BackendChoice::Cpu, Precision::F64) => cpu_csv::<f64>(&scene, &rays, a.all),
-        (BackendChoice::Gpu, Precision::F64) => bail!("--precision f64 needs --backend cpu: the GPU traces in f32"),
-        (BackendChoice::Gpu, Precision::F32) => gpu_csv(&scene, &rays, a.all)?,
+        (Some(BackendChoice::Gpu), Precision::F64) => {
+            bail!("--precision f64 needs --backend cpu: the GPU traces in f32")
+        }
+        (_, Precision::F64) => cpu_csv::<f64>(&scene, &rays, a.all),
+        (Some(BackendChoice::Cpu), Precision::F32) => cpu_csv::<f32>(&scene, &rays, a.all),
+        (Some(BackendChoice::Gpu), Precision::F32) => gpu_csv(GpuContext::new()?, &scene, &rays, a.all)?,
+        (None, Precision::F32) => match GpuContext::new() {
+            Ok(ctx) => gpu_csv(ctx, &scene, &rays, a.all)?,
+            Err(e) => {
+                eprintln!("gpu backend unavailable ({e}); tracing on the cpu");
+                cpu_csv::<f32>(&scene, &rays, a.all)
+            }
+        },
     };
     let secs = start.elapsed().as_secs_f64();
     match &a.output {
@@ -61,9 +73,8 @@ fn cpu_csv<R: Real>(scene: &Scene, rays: &[RayQuery], all: bool) -> String {
     hits_csv(rays, &strahl::backend::cpu::trace::<R>(scene, rays, all), all)
 }
 
-fn gpu_csv(scene: &Scene, rays: &[RayQuery], all: bool) -> Result<String> {
-    use strahl::backend::gpu::{GpuContext, SceneBuffers, trace};
-    let ctx = GpuContext::new()?;
+fn gpu_csv(ctx: GpuContext, scene: &Scene, rays: &[RayQuery], all: bool) -> Result<String> {
+    use strahl::backend::gpu::{SceneBuffers, trace};
     let prep = strahl::render::Prepared::new(scene.clone());
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
     let hits = trace::trace(&ctx, &buffers, rays, all)?;

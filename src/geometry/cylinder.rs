@@ -15,12 +15,7 @@ pub struct Cylinder<R> {
 
 impl<R: Real> Cylinder<R> {
     pub fn cast<S: Real>(&self) -> Cylinder<S> {
-        Cylinder {
-            p1: self.p1.cast(),
-            p2: self.p2.cast(),
-            radius: S::from_f64(self.radius.to_f64()),
-            caps: self.caps,
-        }
+        Cylinder { p1: self.p1.cast(), p2: self.p2.cast(), radius: S::from_f64(self.radius.to_f64()), caps: self.caps }
     }
 
     /// Unit axis â = (p2 − p1)/|p2 − p1| and the length |p2 − p1|.
@@ -71,7 +66,9 @@ impl<R: Real> Shape<R> for Cylinder<R> {
         if let Some((t0, t1)) = stable_quadratic(a, beta, c, disc) {
             let o_axial = o.dot(axis);
             let d_axial = d.dot(axis);
-            for t in [t0, t1] {
+            // A tangent ray's double root is one point of contact, reported once.
+            let distinct = if t1 != t0 { 2 } else { 1 };
+            for t in [t0, t1].into_iter().take(distinct) {
                 let alpha = (o_axial + t * d_axial) / len;
                 if alpha >= R::ZERO && alpha <= R::ONE {
                     roots.push_in_range(t, Part::Surface, tmin, tmax);
@@ -106,8 +103,7 @@ impl<R: Real> Shape<R> for Cylinder<R> {
         let (axis, _) = self.axis();
         let one = V3::splat(R::ONE);
         let e = one - axis.mul_elem(axis);
-        let ext = V3::new(e.x.max(R::ZERO).sqrt(), e.y.max(R::ZERO).sqrt(), e.z.max(R::ZERO).sqrt())
-            * self.radius;
+        let ext = V3::new(e.x.max(R::ZERO).sqrt(), e.y.max(R::ZERO).sqrt(), e.z.max(R::ZERO).sqrt()) * self.radius;
         let lo = self.p1.min_elem(self.p2) - ext;
         let hi = self.p1.max_elem(self.p2) + ext;
         Some((lo, hi))
@@ -187,7 +183,7 @@ mod tests {
         for _ in 0..20_000 {
             let p1 = rng.in_cube(20.0);
             let p2 = p1 + rng.unit_vector() * rng.range(0.5, 10.0);
-            let cyl = Cylinder { p1, p2, radius: rng.range(0.1, 3.0), caps: rng.next_u64() % 2 == 0 };
+            let cyl = Cylinder { p1, p2, radius: rng.range(0.1, 3.0), caps: rng.next_u64().is_multiple_of(2) };
             let c32 = cyl.cast::<f32>();
             let exact = c32.cast::<f64>();
             let ray32 = ray_f32(&rng.ray_towards(50.0, (p1 + p2) * 0.5, 4.0));

@@ -41,11 +41,7 @@ pub struct Roots<R> {
 
 impl<R: Real> Roots<R> {
     pub fn empty() -> Self {
-        Self {
-            t: [R::ZERO; 4],
-            part: [Part::Surface; 4],
-            len: 0,
-        }
+        Self { t: [R::ZERO; 4], part: [Part::Surface; 4], len: 0 }
     }
     /// Adds a root if it lies strictly inside (tmin, tmax); keeps the list sorted.
     #[inline]

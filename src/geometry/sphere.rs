@@ -12,10 +12,7 @@ pub struct Sphere<R> {
 
 impl<R: Real> Sphere<R> {
     pub fn cast<S: Real>(&self) -> Sphere<S> {
-        Sphere {
-            center: self.center.cast(),
-            radius: S::from_f64(self.radius.to_f64()),
-        }
+        Sphere { center: self.center.cast(), radius: S::from_f64(self.radius.to_f64()) }
     }
 }
 
@@ -38,7 +35,10 @@ impl<R: Real> Shape<R> for Sphere<R> {
         let mut roots = Roots::empty();
         if let Some((t0, t1)) = stable_quadratic(a, beta, c, disc) {
             roots.push_in_range(t0, Part::Surface, tmin, tmax);
-            roots.push_in_range(t1, Part::Surface, tmin, tmax);
+            // A tangent ray's double root is one point of contact, reported once.
+            if t1 != t0 {
+                roots.push_in_range(t1, Part::Surface, tmin, tmax);
+            }
         }
         roots
     }
@@ -71,6 +71,13 @@ mod tests {
         assert_eq!((rb.len, rb.t[0], rb.t[1]), (2, 6.0, 12.0));
         assert_eq!(c.roots(&ray, 0.0, f32::INFINITY).len, 0);
         assert_eq!(a.normal(&ray, 3.0, Part::Surface), V3::new(0.0, 0.0, -1.0));
+    }
+
+    #[test]
+    fn tangent_ray_touches_once() {
+        let s = Sphere { center: V3::<f64>::new(0.0, 1.0, 5.0), radius: 1.0 };
+        let r = s.roots(&Ray::new(V3::zero(), V3::new(0.0, 0.0, 1.0)), 0.0, f64::INFINITY);
+        assert_eq!((r.len, r.t[0]), (1, 5.0));
     }
 
     #[test]

@@ -98,10 +98,7 @@ impl<R: Real> Shape<R> for Triangle<R> {
     }
 
     fn bounds(&self) -> Option<(V3<R>, V3<R>)> {
-        Some((
-            self.v[0].min_elem(self.v[1]).min_elem(self.v[2]),
-            self.v[0].max_elem(self.v[1]).max_elem(self.v[2]),
-        ))
+        Some((self.v[0].min_elem(self.v[1]).min_elem(self.v[2]), self.v[0].max_elem(self.v[1]).max_elem(self.v[2])))
     }
 }
 
@@ -149,11 +146,7 @@ mod tests {
     fn degenerate_triangles_never_hit_and_never_give_nan() {
         let p = V3::<f32>::new(0.0, 0.0, 1.0);
         let q = V3::new(1.0, 1.0, 1.0);
-        let degenerate = [
-            Triangle { v: [p, p, p] },
-            Triangle { v: [p, q, (p + q) * 0.5] },
-            Triangle { v: [p, q, q] },
-        ];
+        let degenerate = [Triangle { v: [p, p, p] }, Triangle { v: [p, q, (p + q) * 0.5] }, Triangle { v: [p, q, q] }];
         let mut rng = TestRng(5);
         for _ in 0..10_000 {
             let ray = ray_f32(&rng.ray_towards(3.0, V3::new(0.5, 0.5, 1.0), 0.6));

@@ -17,8 +17,9 @@ use crate::scene::MaterialKind;
 /// Depth of the explicit ray stack. A dielectric hit pushes two rays; when the stack is full
 /// its reflected ray is dropped (only scenes with more than this many nested refractions).
 pub const WHITTED_STACK: usize = 16;
-/// Dielectrics a shadow ray may pass through (tinted by their colour) before it counts as
-/// blocked: glass casts a coloured shadow instead of a black one.
+/// Traversals a shadow ray may make: it passes through up to `SHADOW_PASSES - 1` dielectric
+/// surfaces (tinted by their colour; glass casts a coloured shadow, not a black one) and
+/// counts as blocked after that.
 pub const SHADOW_PASSES: u32 = 8;
 
 const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
@@ -134,7 +135,11 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
             k if k == MaterialKind::Mirror as u32 => {
                 if depth < max_depth && sp < WHITTED_STACK {
                     let r = reflect(ray.dir, ns);
-                    stack[sp] = Pending { ray: Ray::new(offset_ray_origin(p, ns), r), weight: weight.mul_elem(albedo), depth: depth + 1 };
+                    stack[sp] = Pending {
+                        ray: Ray::new(offset_ray_origin(p, ns), r),
+                        weight: weight.mul_elem(albedo),
+                        depth: depth + 1,
+                    };
                     sp += 1;
                 }
             }
@@ -145,7 +150,11 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
                     let f = fresnel_dielectric(cos_i, eta);
                     if sp < WHITTED_STACK {
                         let r = reflect(ray.dir, ns);
-                        stack[sp] = Pending { ray: Ray::new(offset_ray_origin(p, ns), r), weight: weight * f, depth: depth + 1 };
+                        stack[sp] = Pending {
+                            ray: Ray::new(offset_ray_origin(p, ns), r),
+                            weight: weight * f,
+                            depth: depth + 1,
+                        };
                         sp += 1;
                     }
                     if f < 1.0 && sp < WHITTED_STACK {

@@ -9,10 +9,7 @@
 
 use super::mesh::{self, Transform};
 use super::polygon;
-use super::{
-    Camera, Geometry, ImageSize, Light, Material, MaterialKind, Object, RenderSettings, Scene,
-    SceneError,
-};
+use super::{Camera, Geometry, ImageSize, Light, Material, MaterialKind, Object, RenderSettings, Scene, SceneError};
 use crate::geometry::{Cylinder, Plane, Sphere, Triangle};
 use crate::math::V3;
 use serde::Deserialize;
@@ -37,10 +34,7 @@ pub const MAX_SPP: i64 = 65536;
 /// Reads and validates the scene file at `path`; relative mesh paths are resolved against
 /// the file's directory.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
     let base_dir = path.parent().unwrap_or(Path::new(""));
     parse(&src, path, base_dir)
 }
@@ -48,11 +42,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 /// Parses and validates scene source `src`. `path` names the file in error messages only;
 /// mesh files are looked up relative to `base_dir`.
 pub fn parse(src: &str, path: &Path, base_dir: &Path) -> Result<Scene, SceneError> {
-    let cx = Cx {
-        src,
-        path,
-        base_dir,
-    };
+    let cx = Cx { src, path, base_dir };
     let def: SceneDef = toml::from_str(src).map_err(|e| {
         // Only on error is the document parsed again, to name the field at the error's span
         // (a syntax error fails this parse too and is reported as such).
@@ -203,10 +193,7 @@ impl<'de> Deserialize<'de> for ScaleDef {
             fn visit_f64<E>(self, v: f64) -> Result<ScaleDef, E> {
                 Ok(ScaleDef::Uniform(v))
             }
-            fn visit_seq<A: serde::de::SeqAccess<'de>>(
-                self,
-                mut seq: A,
-            ) -> Result<ScaleDef, A::Error> {
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<ScaleDef, A::Error> {
                 let mut out = Vec::new();
                 while let Some(x) = seq.next_element::<Spanned<f64>>()? {
                     out.push(x);
@@ -224,10 +211,7 @@ const OBJECT_TYPES: [(&str, &[&str]); 6] = [
     ("plane", &["point", "normal", "material"]),
     ("triangle", &["vertices", "material"]),
     ("polygon", &["vertices", "material"]),
-    (
-        "mesh",
-        &["file", "translate", "scale", "rotate", "material"],
-    ),
+    ("mesh", &["file", "translate", "scale", "rotate", "material"]),
 ];
 
 // ---------------------------------------------------------------------------------------
@@ -255,44 +239,24 @@ impl Cx<'_> {
         (line, column)
     }
 
-    fn at(
-        &self,
-        span: Range<usize>,
-        field: impl Into<String>,
-        message: impl Into<String>,
-    ) -> SceneError {
+    fn at(&self, span: Range<usize>, field: impl Into<String>, message: impl Into<String>) -> SceneError {
         let (line, column) = self.line_col(span.start);
-        SceneError::At {
-            path: self.path.to_path_buf(),
-            line,
-            column,
-            field: field.into(),
-            message: message.into(),
-        }
+        SceneError::At { path: self.path.to_path_buf(), line, column, field: field.into(), message: message.into() }
     }
 
     fn too_large(&self, message: String) -> SceneError {
-        SceneError::TooLarge {
-            path: self.path.to_path_buf(),
-            message,
-        }
+        SceneError::TooLarge { path: self.path.to_path_buf(), message }
     }
 
     /// A `toml` syntax or deserialization error in our format. With the parsed document, the
     /// field is the path of the innermost key or value at the error's position.
-    fn toml_error(
-        &self,
-        e: &toml::de::Error,
-        doc: Option<&Spanned<toml::de::DeTable>>,
-    ) -> SceneError {
+    fn toml_error(&self, e: &toml::de::Error, doc: Option<&Spanned<toml::de::DeTable>>) -> SceneError {
         let span = e.span().unwrap_or(0..0);
         let message = tidy_toml_message(e.message());
         let field = match doc {
             None => "toml".to_string(),
             Some(doc) => {
-                let missing = message
-                    .strip_prefix("missing field `")
-                    .and_then(|m| m.split('`').next());
+                let missing = message.strip_prefix("missing field `").and_then(|m| m.split('`').next());
                 let field = if let Some(key) = missing {
                     // The span is that of the table lacking the key (empty for the root).
                     let mut table = None;
@@ -303,11 +267,7 @@ impl Cx<'_> {
                     find_path(doc.get_ref(), span.start, "", &mut best);
                     best.map(|(_, _, p)| p).unwrap_or_default()
                 };
-                if field.is_empty() {
-                    "toml".to_string()
-                } else {
-                    field
-                }
+                if field.is_empty() { "toml".to_string() } else { field }
             }
         };
         self.at(span, field, message)
@@ -315,11 +275,7 @@ impl Cx<'_> {
 }
 
 fn join(path: &str, key: &str) -> String {
-    if path.is_empty() {
-        key.to_string()
-    } else {
-        format!("{path}.{key}")
-    }
+    if path.is_empty() { key.to_string() } else { format!("{path}.{key}") }
 }
 
 fn contains(span: &Range<usize>, off: usize) -> bool {
@@ -328,12 +284,7 @@ fn contains(span: &Range<usize>, off: usize) -> bool {
 
 /// Records in `best` the path of the smallest key or value span holding `off` (deeper wins
 /// a tie).
-fn find_path(
-    table: &toml::de::DeTable,
-    off: usize,
-    path: &str,
-    best: &mut Option<(usize, usize, String)>,
-) {
+fn find_path(table: &toml::de::DeTable, off: usize, path: &str, best: &mut Option<(usize, usize, String)>) {
     for (key, value) in table {
         let p = join(path, key.get_ref());
         consider(key.span(), off, &p, best);
@@ -360,12 +311,7 @@ fn find_in_value(
 }
 
 /// The path of the (non-root) table whose span is exactly `span`.
-fn find_table(
-    table: &toml::de::DeTable,
-    span: &Range<usize>,
-    path: &str,
-    found: &mut Option<String>,
-) {
+fn find_table(table: &toml::de::DeTable, span: &Range<usize>, path: &str, found: &mut Option<String>) {
     for (key, value) in table {
         let p = join(path, key.get_ref());
         find_table_in_value(value, span, &p, found);
@@ -419,15 +365,7 @@ fn tidy_toml_message(m: &str) -> String {
         .replace("expected f64", "expected a number")
         .replace("expected i64", "expected an integer")
         .replace("expected a sequence", "expected an array");
-    for name in [
-        "SceneDef",
-        "CameraDef",
-        "ImageDef",
-        "RenderDef",
-        "MaterialDef",
-        "ObjectDef",
-        "LightDef",
-    ] {
+    for name in ["SceneDef", "CameraDef", "ImageDef", "RenderDef", "MaterialDef", "ObjectDef", "LightDef"] {
         m = m.replace(&format!("struct {name}"), "a table");
     }
     m
@@ -435,11 +373,7 @@ fn tidy_toml_message(m: &str) -> String {
 
 fn known_list<'a>(names: impl Iterator<Item = &'a str>) -> String {
     let v: Vec<&str> = names.collect();
-    if v.is_empty() {
-        "(none)".to_string()
-    } else {
-        v.join(", ")
-    }
+    if v.is_empty() { "(none)".to_string() } else { v.join(", ") }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -448,21 +382,13 @@ fn known_list<'a>(names: impl Iterator<Item = &'a str>) -> String {
 impl Cx<'_> {
     fn number(&self, v: &Spanned<f64>, field: &str) -> Res<f64> {
         let x = *v.get_ref();
-        if x.is_finite() {
-            Ok(x)
-        } else {
-            Err(self.at(v.span(), field, format!("must be finite, got {}", num(x))))
-        }
+        if x.is_finite() { Ok(x) } else { Err(self.at(v.span(), field, format!("must be finite, got {}", num(x)))) }
     }
 
     fn vec3(&self, v: &SVec, field: &str) -> Res<V3<f64>> {
         let comps = v.get_ref();
         if comps.len() != 3 {
-            return Err(self.at(
-                v.span(),
-                field,
-                format!("must have 3 components [x, y, z], got {}", comps.len()),
-            ));
+            return Err(self.at(v.span(), field, format!("must have 3 components [x, y, z], got {}", comps.len())));
         }
         let mut out = [0.0; 3];
         for (k, c) in comps.iter().enumerate() {
@@ -477,20 +403,12 @@ impl Cx<'_> {
         for (k, &x) in c.iter().enumerate() {
             let span = v.get_ref()[k].span();
             if x < 0.0 {
-                return Err(self.at(
-                    span,
-                    format!("{field}[{k}]"),
-                    format!("must be >= 0, got {x}"),
-                ));
+                return Err(self.at(span, format!("{field}[{k}]"), format!("must be >= 0, got {x}")));
             }
             if let Some(m) = max
                 && x > m
             {
-                return Err(self.at(
-                    span,
-                    format!("{field}[{k}]"),
-                    format!("must be <= {m}, got {x}"),
-                ));
+                return Err(self.at(span, format!("{field}[{k}]"), format!("must be <= {m}, got {x}")));
             }
         }
         Ok(c)
@@ -507,11 +425,7 @@ impl Cx<'_> {
         if (lo..=hi).contains(&x) {
             Ok(x)
         } else {
-            Err(self.at(
-                v.span(),
-                field,
-                format!("must be an integer in {lo}..={hi}, got {x}"),
-            ))
+            Err(self.at(v.span(), field, format!("must be an integer in {lo}..={hi}, got {x}")))
         }
     }
 
@@ -519,22 +433,15 @@ impl Cx<'_> {
         // Sizes first, before anything is allocated for them.
         let image = self.image(&def.image)?;
         if def.materials.len() > MAX_MATERIALS {
-            return Err(self.too_large(format!(
-                "too many materials: {} (at most {MAX_MATERIALS})",
-                def.materials.len()
-            )));
+            return Err(
+                self.too_large(format!("too many materials: {} (at most {MAX_MATERIALS})", def.materials.len()))
+            );
         }
         if def.objects.len() > MAX_OBJECTS {
-            return Err(self.too_large(format!(
-                "too many objects: {} (at most {MAX_OBJECTS})",
-                def.objects.len()
-            )));
+            return Err(self.too_large(format!("too many objects: {} (at most {MAX_OBJECTS})", def.objects.len())));
         }
         if def.lights.len() > MAX_LIGHTS {
-            return Err(self.too_large(format!(
-                "too many lights: {} (at most {MAX_LIGHTS})",
-                def.lights.len()
-            )));
+            return Err(self.too_large(format!("too many lights: {} (at most {MAX_LIGHTS})", def.lights.len())));
         }
 
         let camera = self.camera(def.camera.get_ref())?;
@@ -597,9 +504,7 @@ impl Cx<'_> {
             };
             triangles += match &geometry {
                 Geometry::Triangle(_) => 1,
-                Geometry::Polygon { triangles, .. } | Geometry::Mesh { triangles, .. } => {
-                    triangles.len()
-                }
+                Geometry::Polygon { triangles, .. } | Geometry::Mesh { triangles, .. } => triangles.len(),
                 _ => 0,
             };
             if triangles > MAX_SCENE_TRIANGLES {
@@ -613,14 +518,7 @@ impl Cx<'_> {
             materials.push(Material::default_grey());
         }
 
-        Ok(Scene {
-            camera,
-            image,
-            render,
-            materials,
-            objects,
-            lights,
-        })
+        Ok(Scene { camera, image, render, materials, objects, lights })
     }
 
     fn image(&self, im: &Spanned<ImageDef>) -> Res<ImageSize> {
@@ -635,10 +533,7 @@ impl Cx<'_> {
                 format!("{w} × {h} = {pixels} pixels exceeds the limit of {MAX_IMAGE_PIXELS}"),
             ));
         }
-        Ok(ImageSize {
-            width: w as u32,
-            height: h as u32,
-        })
+        Ok(ImageSize { width: w as u32, height: h as u32 })
     }
 
     fn camera(&self, c: &CameraDef) -> Res<Camera> {
@@ -647,19 +542,11 @@ impl Cx<'_> {
         let up = self.vec3(&c.up, "camera.up")?;
         let fov_y = self.number(&c.fov_y, "camera.fov_y")?;
         if !(fov_y > 0.0 && fov_y < 180.0) {
-            return Err(self.at(
-                c.fov_y.span(),
-                "camera.fov_y",
-                format!("must be in (0, 180) degrees, got {fov_y}"),
-            ));
+            return Err(self.at(c.fov_y.span(), "camera.fov_y", format!("must be in (0, 180) degrees, got {fov_y}")));
         }
         let view = look_at - eye;
         if !view.is_finite() {
-            return Err(self.at(
-                c.look_at.span(),
-                "camera.look_at",
-                "is too far from eye (overflow)",
-            ));
+            return Err(self.at(c.look_at.span(), "camera.look_at", "is too far from eye (overflow)"));
         }
         let Some(view) = unit(view) else {
             return Err(self.at(c.look_at.span(), "camera.look_at", "must differ from eye"));
@@ -674,12 +561,7 @@ impl Cx<'_> {
                 "must not be parallel to the view direction (look_at - eye)",
             ));
         }
-        Ok(Camera {
-            eye,
-            look_at,
-            up,
-            fov_y,
-        })
+        Ok(Camera { eye, look_at, up, fov_y })
     }
 
     fn render(&self, r: &RenderDef) -> Res<RenderSettings> {
@@ -717,11 +599,7 @@ impl Cx<'_> {
             ));
         };
         let not_a_field = |key: &str, span: Range<usize>| {
-            self.at(
-                span,
-                format!("{field}.{key}"),
-                format!("not a field of a {tname} material"),
-            )
+            self.at(span, format!("{field}.{key}"), format!("not a field of a {tname} material"))
         };
         if kind != MaterialKind::Dielectric
             && let Some(ior) = &d.ior
@@ -767,13 +645,7 @@ impl Cx<'_> {
             };
             radiance = self.rgb(r, &format!("{field}.radiance"), None)?;
         }
-        Ok(Material {
-            name: name.clone(),
-            kind,
-            color,
-            ior,
-            radiance,
-        })
+        Ok(Material { name: name.clone(), kind, color, ior, radiance })
     }
 
     fn light(&self, l: &Spanned<LightDef>, field: &str) -> Res<Light> {
@@ -781,53 +653,29 @@ impl Cx<'_> {
         let tname = d.kind.get_ref().as_str();
         let require = |v: &Option<SVec>, key: &str| -> Res<SVec> {
             v.clone().ok_or_else(|| {
-                self.at(
-                    l.span(),
-                    format!("{field}.{key}"),
-                    format!("missing (a {tname} light needs {key})"),
-                )
+                self.at(l.span(), format!("{field}.{key}"), format!("missing (a {tname} light needs {key})"))
             })
         };
         let not_a_field = |key: &str, span: Range<usize>| {
-            self.at(
-                span,
-                format!("{field}.{key}"),
-                format!("not a field of a {tname} light"),
-            )
+            self.at(span, format!("{field}.{key}"), format!("not a field of a {tname} light"))
         };
         let intensity = |this: &Self| -> Res<[f64; 3]> {
-            this.rgb(
-                &require(&d.intensity, "intensity")?,
-                &format!("{field}.intensity"),
-                None,
-            )
+            this.rgb(&require(&d.intensity, "intensity")?, &format!("{field}.intensity"), None)
         };
         match tname {
             "point" => {
                 if let Some(v) = &d.direction {
                     return Err(not_a_field("direction", v.span()));
                 }
-                let position = self.vec3(
-                    &require(&d.position, "position")?,
-                    &format!("{field}.position"),
-                )?;
-                Ok(Light::Point {
-                    position,
-                    intensity: intensity(self)?,
-                })
+                let position = self.vec3(&require(&d.position, "position")?, &format!("{field}.position"))?;
+                Ok(Light::Point { position, intensity: intensity(self)? })
             }
             "directional" => {
                 if let Some(v) = &d.position {
                     return Err(not_a_field("position", v.span()));
                 }
-                let direction = self.direction(
-                    &require(&d.direction, "direction")?,
-                    &format!("{field}.direction"),
-                )?;
-                Ok(Light::Directional {
-                    direction,
-                    intensity: intensity(self)?,
-                })
+                let direction = self.direction(&require(&d.direction, "direction")?, &format!("{field}.direction"))?;
+                Ok(Light::Directional { direction, intensity: intensity(self)? })
             }
             _ => Err(self.at(
                 d.kind.span(),
@@ -844,10 +692,7 @@ impl Cx<'_> {
             return Err(self.at(
                 d.kind.span(),
                 format!("{field}.type"),
-                format!(
-                    "unknown object type \"{tname}\"; known: {}",
-                    known_list(OBJECT_TYPES.iter().map(|(t, _)| *t))
-                ),
+                format!("unknown object type \"{tname}\"; known: {}", known_list(OBJECT_TYPES.iter().map(|(t, _)| *t))),
             ));
         };
         for (key, span) in d.present() {
@@ -855,10 +700,7 @@ impl Cx<'_> {
                 return Err(self.at(
                     span,
                     format!("{field}.{key}"),
-                    format!(
-                        "not a field of a {tname} (its fields: type, {})",
-                        allowed.join(", ")
-                    ),
+                    format!("not a field of a {tname} (its fields: type, {})", allowed.join(", ")),
                 ));
             }
         }
@@ -869,11 +711,7 @@ impl Cx<'_> {
                 .copied()
                 .filter(|k| !matches!(*k, "material" | "caps" | "translate" | "scale" | "rotate"))
                 .collect();
-            self.at(
-                o.span(),
-                f(key),
-                format!("missing (a {tname} needs {})", needs.join(", ")),
-            )
+            self.at(o.span(), f(key), format!("missing (a {tname} needs {})", needs.join(", ")))
         };
         let req_vec = |v: &Option<SVec>, key: &str| -> Res<V3<f64>> {
             match v {
@@ -889,11 +727,7 @@ impl Cx<'_> {
             if x > 0.0 {
                 Ok(x)
             } else {
-                Err(self.at(
-                    r.span(),
-                    f("radius"),
-                    format!("must be > 0 and finite, got {x}"),
-                ))
+                Err(self.at(r.span(), f("radius"), format!("must be > 0 and finite, got {x}")))
             }
         };
         let vertices = || -> Res<(Vec<V3<f64>>, Range<usize>)> {
@@ -921,22 +755,13 @@ impl Cx<'_> {
                 let axis = p2 - p1;
                 let p2_span = d.p2.as_ref().map_or(o.span(), Spanned::span);
                 if axis == V3::zero() {
-                    return Err(self.at(
-                        p2_span,
-                        f("p2"),
-                        "must differ from p1 (the cylinder has no axis)",
-                    ));
+                    return Err(self.at(p2_span, f("p2"), "must differ from p1 (the cylinder has no axis)"));
                 }
                 if !axis.is_finite() {
                     return Err(self.at(p2_span, f("p2"), "is too far from p1 (overflow)"));
                 }
                 let caps = d.caps.as_ref().is_none_or(|c| *c.get_ref());
-                Ok(Geometry::Cylinder(Cylinder {
-                    p1,
-                    p2,
-                    radius,
-                    caps,
-                }))
+                Ok(Geometry::Cylinder(Cylinder { p1, p2, radius, caps }))
             }
             "plane" => {
                 let point = req_vec(&d.point, "point")?;
@@ -961,31 +786,17 @@ impl Cx<'_> {
                     .max((v[0] - v[2]).length_squared());
                 let cross = (v[1] - v[0]).cross(v[2] - v[0]).length();
                 if !longest.is_finite() || !cross.is_finite() {
-                    return Err(self.at(
-                        span,
-                        f("vertices"),
-                        "the triangle is too large (overflow)",
-                    ));
+                    return Err(self.at(span, f("vertices"), "the triangle is too large (overflow)"));
                 }
                 if cross.is_nan() || cross <= 1e-12 * longest {
-                    return Err(self.at(
-                        span,
-                        f("vertices"),
-                        "degenerate triangle: its vertices are collinear",
-                    ));
+                    return Err(self.at(span, f("vertices"), "degenerate triangle: its vertices are collinear"));
                 }
-                Ok(Geometry::Triangle(Triangle {
-                    v: [v[0], v[1], v[2]],
-                }))
+                Ok(Geometry::Triangle(Triangle { v: [v[0], v[1], v[2]] }))
             }
             "polygon" => {
                 let (vertices, span) = vertices()?;
-                let triangles =
-                    polygon::triangulate(&vertices).map_err(|m| self.at(span, f("vertices"), m))?;
-                Ok(Geometry::Polygon {
-                    vertices,
-                    triangles,
-                })
+                let triangles = polygon::triangulate(&vertices).map_err(|m| self.at(span, f("vertices"), m))?;
+                Ok(Geometry::Polygon { vertices, triangles })
             }
             "mesh" => {
                 let Some(file) = &d.file else {
@@ -1016,10 +827,7 @@ impl Cx<'_> {
                         message,
                     }
                 })?;
-                Ok(Geometry::Mesh {
-                    file: mesh_path,
-                    triangles,
-                })
+                Ok(Geometry::Mesh { file: mesh_path, triangles })
             }
             _ => unreachable!("object types are checked above"),
         }
@@ -1045,10 +853,7 @@ impl Cx<'_> {
                     return Err(self.at(
                         s.span(),
                         field,
-                        format!(
-                            "must be a number or have 3 components [x, y, z], got {}",
-                            v.len()
-                        ),
+                        format!("must be a number or have 3 components [x, y, z], got {}", v.len()),
                     ));
                 }
                 let mut out = [0.0; 3];
@@ -1063,11 +868,7 @@ impl Cx<'_> {
 
 /// A number as TOML spells it (`nan`, not Rust's `NaN`).
 fn num(x: f64) -> String {
-    if x.is_nan() {
-        "nan".to_string()
-    } else {
-        x.to_string()
-    }
+    if x.is_nan() { "nan".to_string() } else { x.to_string() }
 }
 
 /// v / |v|, computed without overflow; None for the zero vector.
@@ -1102,13 +903,7 @@ mod tests {
     #[test]
     fn minimal_scene_with_defaults() {
         let s = parse_str(HEAD).unwrap();
-        assert_eq!(
-            s.image,
-            ImageSize {
-                width: 64,
-                height: 48
-            }
-        );
+        assert_eq!(s.image, ImageSize { width: 64, height: 48 });
         assert_eq!(s.render, RenderSettings::default());
         assert!(s.objects.is_empty() && s.materials.is_empty() && s.lights.is_empty());
         assert_eq!(s.camera.fov_y, 45.0);
@@ -1127,66 +922,30 @@ mod tests {
         assert_eq!(s.materials[1], Material::default_grey());
         assert_eq!(s.objects[0].material, 1);
         assert_eq!(s.objects[1].material, 0);
-        assert_eq!(
-            s.objects[0].geometry,
-            Geometry::Sphere(Sphere {
-                center: V3::new(0.0, 0.0, 8.0),
-                radius: 5.0
-            })
-        );
-        assert_eq!(
-            s.lights[0],
-            Light::Directional {
-                direction: V3::new(0.0, -1.0, 0.0),
-                intensity: [1.0; 3]
-            }
-        );
+        assert_eq!(s.objects[0].geometry, Geometry::Sphere(Sphere { center: V3::new(0.0, 0.0, 8.0), radius: 5.0 }));
+        assert_eq!(s.lights[0], Light::Directional { direction: V3::new(0.0, -1.0, 0.0), intensity: [1.0; 3] });
     }
 
     #[test]
     fn errors_point_at_the_value() {
-        let src =
-            format!("{HEAD}[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 8]\nradius = -1\n");
+        let src = format!("{HEAD}[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 8]\nradius = -1\n");
         let e = err(&src);
-        assert_eq!(
-            e,
-            "t.toml:12:10: objects[0].radius: must be > 0 and finite, got -1"
-        );
-        let src =
-            format!("{HEAD}[[objects]]\ntype = \"sphere\"\ncenter = [0, inf, 8]\nradius = 1\n");
-        assert_eq!(
-            err(&src),
-            "t.toml:11:14: objects[0].center[1]: must be finite, got inf"
-        );
+        assert_eq!(e, "t.toml:12:10: objects[0].radius: must be > 0 and finite, got -1");
+        let src = format!("{HEAD}[[objects]]\ntype = \"sphere\"\ncenter = [0, inf, 8]\nradius = 1\n");
+        assert_eq!(err(&src), "t.toml:11:14: objects[0].center[1]: must be finite, got inf");
     }
 
     #[test]
     fn toml_errors_name_the_field() {
-        let e = err(&format!(
-            "{HEAD}[[objects]]\ntype = \"sphere\"\nradiuss = 1\n"
-        ));
-        assert!(
-            e.starts_with("t.toml:11:1: objects[0].radiuss: unknown field `radiuss`"),
-            "{e}"
-        );
-        let e = err(&format!(
-            "{HEAD}[[objects]]\ntype = \"sphere\"\nradius = \"big\"\n"
-        ));
-        assert!(
-            e.starts_with("t.toml:11:10: objects[0].radius: invalid type"),
-            "{e}"
-        );
+        let e = err(&format!("{HEAD}[[objects]]\ntype = \"sphere\"\nradiuss = 1\n"));
+        assert!(e.starts_with("t.toml:11:1: objects[0].radiuss: unknown field `radiuss`"), "{e}");
+        let e = err(&format!("{HEAD}[[objects]]\ntype = \"sphere\"\nradius = \"big\"\n"));
+        assert!(e.starts_with("t.toml:11:10: objects[0].radius: invalid type"), "{e}");
         assert!(e.contains("expected a number"), "{e}");
         let e = err("[image]\nwidth = 1\nheight = 1\n");
-        assert!(
-            e.starts_with("t.toml:1:1: camera: missing field `camera`"),
-            "{e}"
-        );
+        assert!(e.starts_with("t.toml:1:1: camera: missing field `camera`"), "{e}");
         let e = err(&format!("{HEAD}[[objects]]\nradius = 1\n"));
-        assert!(
-            e.starts_with("t.toml:9:1: objects[0].type: missing field `type`"),
-            "{e}"
-        );
+        assert!(e.starts_with("t.toml:9:1: objects[0].type: missing field `type`"), "{e}");
         let e = err("[camera\n");
         assert!(e.starts_with("t.toml:1:"), "{e}");
         assert!(e.contains(": toml: "), "{e}");
@@ -1196,9 +955,7 @@ mod tests {
 
     #[test]
     fn column_counts_characters() {
-        let src = format!(
-            "# äöü\n{HEAD}[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 8]\nradius = 0 # ü\n"
-        );
+        let src = format!("# äöü\n{HEAD}[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 8]\nradius = 0 # ü\n");
         assert!(err(&src).starts_with("t.toml:13:10: objects[0].radius"));
         let src = format!("{HEAD}[[materials]]\nname = \"ü\"\ntype = \"glass\"\n");
         assert!(err(&src).starts_with("t.toml:11:8: materials[0].type: unknown material type"));
@@ -1206,70 +963,32 @@ mod tests {
 
     #[test]
     fn field_not_of_the_type() {
-        let e = err(&format!(
-            "{HEAD}[[objects]]\ntype = \"triangle\"\nvertices = [[0,0,0],[1,0,0],[0,1,0]]\nradius = 1\n"
-        ));
-        assert!(
-            e.contains("objects[0].radius: not a field of a triangle"),
-            "{e}"
-        );
-        let e = err(&format!(
-            "{HEAD}[[materials]]\nname = \"m\"\ntype = \"diffuse\"\nior = 1.3\n"
-        ));
-        assert!(
-            e.contains("materials[0].ior: not a field of a diffuse material"),
-            "{e}"
-        );
+        let e =
+            err(&format!("{HEAD}[[objects]]\ntype = \"triangle\"\nvertices = [[0,0,0],[1,0,0],[0,1,0]]\nradius = 1\n"));
+        assert!(e.contains("objects[0].radius: not a field of a triangle"), "{e}");
+        let e = err(&format!("{HEAD}[[materials]]\nname = \"m\"\ntype = \"diffuse\"\nior = 1.3\n"));
+        assert!(e.contains("materials[0].ior: not a field of a diffuse material"), "{e}");
     }
 
     #[test]
     fn mesh_scale_forms() {
         let dir = tempfile::tempdir().unwrap();
-        std::fs::write(
-            dir.path().join("t.obj"),
-            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
-        )
-        .unwrap();
+        std::fs::write(dir.path().join("t.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
         let go = |scale: &str| {
-            let src =
-                format!("{HEAD}[[objects]]\ntype = \"mesh\"\nfile = \"t.obj\"\nscale = {scale}\n");
+            let src = format!("{HEAD}[[objects]]\ntype = \"mesh\"\nfile = \"t.obj\"\nscale = {scale}\n");
             parse(&src, Path::new("t.toml"), dir.path())
         };
         let s = go("2").unwrap();
-        let Geometry::Mesh { triangles, file } = &s.objects[0].geometry else {
-            panic!()
-        };
+        let Geometry::Mesh { triangles, file } = &s.objects[0].geometry else { panic!() };
         assert_eq!(triangles[0].v[1], V3::new(2.0, 0.0, 0.0));
         assert_eq!(file, &dir.path().join("t.obj"));
         let s = go("[1, 3, 1.5]").unwrap();
-        let Geometry::Mesh { triangles, .. } = &s.objects[0].geometry else {
-            panic!()
-        };
+        let Geometry::Mesh { triangles, .. } = &s.objects[0].geometry else { panic!() };
         assert_eq!(triangles[0].v[2], V3::new(0.0, 3.0, 0.0));
-        assert!(
-            go("0")
-                .unwrap_err()
-                .to_string()
-                .contains("objects[0].scale: must be non-zero")
-        );
-        assert!(
-            go("[1, 0, 1]")
-                .unwrap_err()
-                .to_string()
-                .contains("objects[0].scale[1]: must be non-zero")
-        );
-        assert!(
-            go("[1, 1]")
-                .unwrap_err()
-                .to_string()
-                .contains("objects[0].scale: must be a number or have 3")
-        );
-        assert!(
-            go("\"x\"")
-                .unwrap_err()
-                .to_string()
-                .contains("objects[0].scale: invalid type")
-        );
+        assert!(go("0").unwrap_err().to_string().contains("objects[0].scale: must be non-zero"));
+        assert!(go("[1, 0, 1]").unwrap_err().to_string().contains("objects[0].scale[1]: must be non-zero"));
+        assert!(go("[1, 1]").unwrap_err().to_string().contains("objects[0].scale: must be a number or have 3"));
+        assert!(go("\"x\"").unwrap_err().to_string().contains("objects[0].scale: invalid type"));
     }
 
     fn manifest() -> PathBuf {
@@ -1286,11 +1005,7 @@ mod tests {
         let meshes = dir.path().join("meshes");
         std::fs::create_dir_all(&scenes).unwrap();
         std::fs::create_dir_all(&meshes).unwrap();
-        std::fs::copy(
-            manifest().join("assets/meshes/cube.obj"),
-            meshes.join("bumpy_torus.obj"),
-        )
-        .unwrap();
+        std::fs::copy(manifest().join("assets/meshes/cube.obj"), meshes.join("bumpy_torus.obj")).unwrap();
         let path = scenes.join("seed.toml");
         let mut ok = 0;
         for end in 0..=src.len() {
@@ -1311,20 +1026,7 @@ mod tests {
     fn mangled_seed_scene_never_panics() {
         let src = std::fs::read_to_string(manifest().join("assets/scenes/seed.toml")).unwrap();
         let nowhere = Path::new("/nonexistent");
-        let junk = [
-            "",
-            "=",
-            "[",
-            "]]",
-            "\"",
-            "x = 1",
-            "nan",
-            "-inf",
-            "[[objects]]",
-            "1e400",
-            "{",
-            "'''",
-        ];
+        let junk = ["", "=", "[", "]]", "\"", "x = 1", "nan", "-inf", "[[objects]]", "1e400", "{", "'''"];
         let lines: Vec<&str> = src.lines().collect();
         for i in 0..lines.len() {
             for j in junk {

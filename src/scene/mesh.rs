@@ -20,11 +20,7 @@ pub struct Transform {
 
 impl Default for Transform {
     fn default() -> Self {
-        Self {
-            translate: [0.0; 3],
-            scale: [1.0; 3],
-            rotate_deg: [0.0; 3],
-        }
+        Self { translate: [0.0; 3], scale: [1.0; 3], rotate_deg: [0.0; 3] }
     }
 }
 
@@ -75,9 +71,7 @@ pub fn load_obj(path: &Path, transform: &Transform) -> Result<Vec<Triangle<f64>>
     // with unchecked arithmetic in a few places (overflowing relative indices), so a panic in
     // it is turned into an error too.
     let loaded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        tobj::load_obj_buf(&mut reader, &options, |_| {
-            Err(tobj::LoadError::OpenFileFailed)
-        })
+        tobj::load_obj_buf(&mut reader, &options, |_| Err(tobj::LoadError::OpenFileFailed))
     }));
     let models = match loaded {
         Ok(Ok((models, _materials))) => models,
@@ -88,10 +82,7 @@ pub fn load_obj(path: &Path, transform: &Transform) -> Result<Vec<Triangle<f64>>
     let mut count: usize = 0;
     for m in &models {
         if m.mesh.indices.len() % 3 != 0 {
-            return Err(format!(
-                "model {:?}: face index count is not a multiple of 3",
-                m.name
-            ));
+            return Err(format!("model {:?}: face index count is not a multiple of 3", m.name));
         }
         count = count.saturating_add(m.mesh.indices.len() / 3);
     }
@@ -99,9 +90,7 @@ pub fn load_obj(path: &Path, transform: &Transform) -> Result<Vec<Triangle<f64>>
         return Err("no faces".into());
     }
     if count > MAX_MESH_TRIANGLES {
-        return Err(format!(
-            "{count} triangles exceed the limit of {MAX_MESH_TRIANGLES}"
-        ));
+        return Err(format!("{count} triangles exceed the limit of {MAX_MESH_TRIANGLES}"));
     }
 
     let mirror = transform.mirrors();
@@ -111,38 +100,22 @@ pub fn load_obj(path: &Path, transform: &Transform) -> Result<Vec<Triangle<f64>>
         let nverts = pos.len() / 3;
         let mut placed = Vec::with_capacity(nverts);
         for i in 0..nverts {
-            let p = V3::new(
-                pos[3 * i] as f64,
-                pos[3 * i + 1] as f64,
-                pos[3 * i + 2] as f64,
-            );
+            let p = V3::new(pos[3 * i] as f64, pos[3 * i + 1] as f64, pos[3 * i + 2] as f64);
             if !p.is_finite() {
-                return Err(format!(
-                    "vertex {} is not finite: ({}, {}, {})",
-                    i + 1,
-                    p.x,
-                    p.y,
-                    p.z
-                ));
+                return Err(format!("vertex {} is not finite: ({}, {}, {})", i + 1, p.x, p.y, p.z));
             }
             let q = transform.apply(p);
             if !q.is_finite() {
-                return Err(format!(
-                    "vertex {} is not finite after the transform",
-                    i + 1
-                ));
+                return Err(format!("vertex {} is not finite after the transform", i + 1));
             }
             placed.push(q);
         }
         for f in m.mesh.indices.chunks_exact(3) {
             let mut v = [V3::zero(); 3];
             for (k, &ix) in f.iter().enumerate() {
-                v[k] = *placed.get(ix as usize).ok_or_else(|| {
-                    format!(
-                        "face vertex index {} out of range (1..={nverts})",
-                        ix as u64 + 1
-                    )
-                })?;
+                v[k] = *placed
+                    .get(ix as usize)
+                    .ok_or_else(|| format!("face vertex index {} out of range (1..={nverts})", ix as u64 + 1))?;
             }
             if mirror {
                 v.swap(1, 2);
@@ -193,22 +166,12 @@ pub fn bumpy_torus(nu: usize, nv: usize, major: f64, minor: f64) -> (Vec<V3<f64>
 
 /// Writes vertices and 0-based faces as an OBJ file (1-based indices); floats are written
 /// with Rust's shortest round-trip formatting.
-pub fn write_obj(
-    w: &mut impl Write,
-    vertices: &[V3<f64>],
-    faces: &[[u32; 3]],
-) -> std::io::Result<()> {
+pub fn write_obj(w: &mut impl Write, vertices: &[V3<f64>], faces: &[[u32; 3]]) -> std::io::Result<()> {
     for v in vertices {
         writeln!(w, "v {} {} {}", v.x, v.y, v.z)?;
     }
     for f in faces {
-        writeln!(
-            w,
-            "f {} {} {}",
-            f[0] as u64 + 1,
-            f[1] as u64 + 1,
-            f[2] as u64 + 1
-        )?;
+        writeln!(w, "f {} {} {}", f[0] as u64 + 1, f[1] as u64 + 1, f[2] as u64 + 1)?;
     }
     Ok(())
 }
@@ -223,45 +186,17 @@ mod tests {
 
     #[test]
     fn transform_order_is_scale_rotate_xyz_translate() {
-        let t = Transform {
-            translate: [1.0, 2.0, 3.0],
-            scale: [2.0, 1.0, 1.0],
-            rotate_deg: [0.0, 0.0, 90.0],
-        };
+        let t = Transform { translate: [1.0, 2.0, 3.0], scale: [2.0, 1.0, 1.0], rotate_deg: [0.0, 0.0, 90.0] };
         // (1,0,0) → scale (2,0,0) → rot Z 90° (0,2,0) → translate (1,4,3).
-        assert!(close(
-            t.apply(V3::new(1.0, 0.0, 0.0)),
-            V3::new(1.0, 4.0, 3.0)
-        ));
-        let rx = Transform {
-            rotate_deg: [90.0, 0.0, 0.0],
-            ..Default::default()
-        };
-        assert!(close(
-            rx.apply(V3::new(0.0, 1.0, 0.0)),
-            V3::new(0.0, 0.0, 1.0)
-        ));
-        let ry = Transform {
-            rotate_deg: [0.0, 90.0, 0.0],
-            ..Default::default()
-        };
-        assert!(close(
-            ry.apply(V3::new(0.0, 0.0, 1.0)),
-            V3::new(1.0, 0.0, 0.0)
-        ));
+        assert!(close(t.apply(V3::new(1.0, 0.0, 0.0)), V3::new(1.0, 4.0, 3.0)));
+        let rx = Transform { rotate_deg: [90.0, 0.0, 0.0], ..Default::default() };
+        assert!(close(rx.apply(V3::new(0.0, 1.0, 0.0)), V3::new(0.0, 0.0, 1.0)));
+        let ry = Transform { rotate_deg: [0.0, 90.0, 0.0], ..Default::default() };
+        assert!(close(ry.apply(V3::new(0.0, 0.0, 1.0)), V3::new(1.0, 0.0, 0.0)));
         // X first, then Y: (0,1,0) → X 90° → (0,0,1) → Y 90° → (1,0,0).
-        let xy = Transform {
-            rotate_deg: [90.0, 90.0, 0.0],
-            ..Default::default()
-        };
-        assert!(close(
-            xy.apply(V3::new(0.0, 1.0, 0.0)),
-            V3::new(1.0, 0.0, 0.0)
-        ));
-        assert_eq!(
-            Transform::default().apply(V3::new(1.5, -2.0, 3.0)),
-            V3::new(1.5, -2.0, 3.0)
-        );
+        let xy = Transform { rotate_deg: [90.0, 90.0, 0.0], ..Default::default() };
+        assert!(close(xy.apply(V3::new(0.0, 1.0, 0.0)), V3::new(1.0, 0.0, 0.0)));
+        assert_eq!(Transform::default().apply(V3::new(1.5, -2.0, 3.0)), V3::new(1.5, -2.0, 3.0));
     }
 
     #[test]
@@ -293,10 +228,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("t.obj");
         std::fs::write(&path, &buf).unwrap();
-        let t = Transform {
-            translate: [1.0, 0.0, 0.0],
-            ..Default::default()
-        };
+        let t = Transform { translate: [1.0, 0.0, 0.0], ..Default::default() };
         let tris = load_obj(&path, &t).unwrap();
         assert_eq!(tris.len(), f.len());
         for (tri, face) in tris.iter().zip(&f) {
@@ -312,10 +244,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("tri.obj");
         std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
-        let t = Transform {
-            scale: [-1.0, 1.0, 1.0],
-            ..Default::default()
-        };
+        let t = Transform { scale: [-1.0, 1.0, 1.0], ..Default::default() };
         let tris = load_obj(&path, &t).unwrap();
         assert!(tris[0].face_normal().z > 0.0);
         // Quads are split into two triangles.
@@ -338,10 +267,6 @@ mod tests {
         assert!(err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -9223372036854775808\n").contains("OBJ"));
         assert!(err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n").contains("out of"));
         let missing = dir.path().join("nope.obj");
-        assert!(
-            load_obj(&missing, &Transform::default())
-                .unwrap_err()
-                .contains("cannot open")
-        );
+        assert!(load_obj(&missing, &Transform::default()).unwrap_err().contains("cannot open"));
     }
 }

@@ -135,9 +135,15 @@ pub enum Geometry {
     Plane(Plane<f64>),
     Triangle(Triangle<f64>),
     /// A planar, simple polygon and its triangulation (`prim` indexes these triangles).
-    Polygon { vertices: Vec<V3<f64>>, triangles: Vec<Triangle<f64>> },
+    Polygon {
+        vertices: Vec<V3<f64>>,
+        triangles: Vec<Triangle<f64>>,
+    },
     /// A triangle mesh loaded from `file`, already transformed.
-    Mesh { file: PathBuf, triangles: Vec<Triangle<f64>> },
+    Mesh {
+        file: PathBuf,
+        triangles: Vec<Triangle<f64>>,
+    },
 }
 
 impl Geometry {

@@ -20,23 +20,15 @@ pub fn triangulate(vertices: &[V3<f64>]) -> Result<Vec<Triangle<f64>>, String> {
         return Err(format!("a polygon needs at least 3 vertices, got {n}"));
     }
     if n > MAX_POLYGON_VERTICES {
-        return Err(format!(
-            "a polygon may have at most {MAX_POLYGON_VERTICES} vertices, got {n}; use a mesh file"
-        ));
+        return Err(format!("a polygon may have at most {MAX_POLYGON_VERTICES} vertices, got {n}; use a mesh file"));
     }
     if let Some(i) = vertices.iter().position(|v| !v.is_finite()) {
-        return Err(format!(
-            "vertex {i} must be finite, got {}",
-            fmt_v(vertices[i])
-        ));
+        return Err(format!("vertex {i} must be finite, got {}", fmt_v(vertices[i])));
     }
     for i in 0..n {
         let j = (i + 1) % n;
         if vertices[i] == vertices[j] {
-            return Err(format!(
-                "vertices {i} and {j} are the same point {}",
-                fmt_v(vertices[i])
-            ));
+            return Err(format!("vertices {i} and {j} are the same point {}", fmt_v(vertices[i])));
         }
     }
 
@@ -81,25 +73,16 @@ pub fn triangulate(vertices: &[V3<f64>]) -> Result<Vec<Triangle<f64>>, String> {
     let orient = if normal[k] > 0.0 { 1.0 } else { -1.0 };
     // Centre the 2D points on the centroid to keep the predicates well conditioned, and
     // flip v for clockwise input so the ear clipper always sees a counter-clockwise polygon.
-    let pts: Vec<[f64; 2]> = vertices
-        .iter()
-        .map(|p| [p[ku] - centroid[ku], orient * (p[kv] - centroid[kv])])
-        .collect();
+    let pts: Vec<[f64; 2]> = vertices.iter().map(|p| [p[ku] - centroid[ku], orient * (p[kv] - centroid[kv])]).collect();
 
     check_simple(&pts)?;
     if zero_area {
         return Err("degenerate polygon: its signed area is zero".into());
     }
 
-    let ids = ear_clip(&pts).ok_or_else(|| {
-        "the polygon could not be triangulated (it is numerically degenerate)".to_string()
-    })?;
-    Ok(ids
-        .into_iter()
-        .map(|[a, b, c]| Triangle {
-            v: [vertices[a], vertices[b], vertices[c]],
-        })
-        .collect())
+    let ids = ear_clip(&pts)
+        .ok_or_else(|| "the polygon could not be triangulated (it is numerically degenerate)".to_string())?;
+    Ok(ids.into_iter().map(|[a, b, c]| Triangle { v: [vertices[a], vertices[b], vertices[c]] }).collect())
 }
 
 fn fmt_v(v: V3<f64>) -> String {
@@ -132,23 +115,14 @@ fn newell_normal(vertices: &[V3<f64>]) -> V3<f64> {
 /// all vertices are collinear.
 fn spanning_normal(vertices: &[V3<f64>]) -> V3<f64> {
     let o = vertices[0];
-    let far = vertices.iter().map(|&v| v - o).fold(V3::zero(), |a, d| {
-        if d.length_squared() > a.length_squared() {
-            d
-        } else {
-            a
-        }
-    });
+    let far = vertices
+        .iter()
+        .map(|&v| v - o)
+        .fold(V3::zero(), |a, d| if d.length_squared() > a.length_squared() { d } else { a });
     vertices
         .iter()
         .map(|&v| far.cross(v - o))
-        .fold(V3::zero(), |a, c| {
-            if c.length_squared() > a.length_squared() {
-                c
-            } else {
-                a
-            }
-        })
+        .fold(V3::zero(), |a, c| if c.length_squared() > a.length_squared() { c } else { a })
 }
 
 /// Twice the signed area of (a, b, c): > 0 when counter-clockwise.
@@ -158,10 +132,7 @@ fn orient2d(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
 
 /// Whether p lies within the bounding box of segment ab (used once p is known collinear).
 fn in_box(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> bool {
-    p[0] >= a[0].min(b[0])
-        && p[0] <= a[0].max(b[0])
-        && p[1] >= a[1].min(b[1])
-        && p[1] <= a[1].max(b[1])
+    p[0] >= a[0].min(b[0]) && p[0] <= a[0].max(b[0]) && p[1] >= a[1].min(b[1]) && p[1] <= a[1].max(b[1])
 }
 
 /// Whether closed segments ab and cd share a point.
@@ -170,9 +141,7 @@ fn segments_intersect(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> boo
     let d2 = orient2d(c, d, b);
     let d3 = orient2d(a, b, c);
     let d4 = orient2d(a, b, d);
-    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
-        && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
-    {
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0)) && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0)) {
         return true;
     }
     (d1 == 0.0 && in_box(c, d, a))
@@ -204,9 +173,7 @@ fn check_simple(p: &[[f64; 2]]) -> Result<(), String> {
             }
             let (c, d) = (p[j], p[(j + 1) % n]);
             if segments_intersect(a, b, c, d) {
-                return Err(format!(
-                    "the polygon is self-intersecting: edges {i} and {j} cross"
-                ));
+                return Err(format!("the polygon is self-intersecting: edges {i} and {j} cross"));
             }
         }
     }
@@ -285,12 +252,7 @@ mod tests {
 
     #[test]
     fn square_gives_two_triangles_of_total_area() {
-        let sq = [
-            v(0.0, 0.0, 0.0),
-            v(2.0, 0.0, 0.0),
-            v(2.0, 2.0, 0.0),
-            v(0.0, 2.0, 0.0),
-        ];
+        let sq = [v(0.0, 0.0, 0.0), v(2.0, 0.0, 0.0), v(2.0, 2.0, 0.0), v(0.0, 2.0, 0.0)];
         let tris = triangulate(&sq).unwrap();
         assert_eq!(tris.len(), 2);
         let a: f64 = tris.iter().map(area).sum();
@@ -303,12 +265,7 @@ mod tests {
     #[test]
     fn clockwise_input_keeps_its_winding() {
         // In the y = 1 plane, wound so that the Newell normal is −y.
-        let sq = [
-            v(0.0, 1.0, 0.0),
-            v(1.0, 1.0, 0.0),
-            v(1.0, 1.0, 1.0),
-            v(0.0, 1.0, 1.0),
-        ];
+        let sq = [v(0.0, 1.0, 0.0), v(1.0, 1.0, 0.0), v(1.0, 1.0, 1.0), v(0.0, 1.0, 1.0)];
         let n = newell_normal(&sq);
         assert!(n.y < 0.0);
         for t in triangulate(&sq).unwrap() {
@@ -319,14 +276,7 @@ mod tests {
     #[test]
     fn concave_l_hexagon() {
         // An L: the 2×2 square minus its top-right 1×1 quadrant, in the x = 3 plane.
-        let yz = [
-            (0.0, 0.0),
-            (2.0, 0.0),
-            (2.0, 1.0),
-            (1.0, 1.0),
-            (1.0, 2.0),
-            (0.0, 2.0),
-        ];
+        let yz = [(0.0, 0.0), (2.0, 0.0), (2.0, 1.0), (1.0, 1.0), (1.0, 2.0), (0.0, 2.0)];
         let poly: Vec<_> = yz.iter().map(|&(y, z)| v(3.0, y, z)).collect();
         let tris = triangulate(&poly).unwrap();
         assert_eq!(tris.len(), 4);
@@ -356,13 +306,7 @@ mod tests {
 
     #[test]
     fn collinear_point_on_an_edge_is_fine() {
-        let p = [
-            v(0.0, 0.0, 0.0),
-            v(1.0, 0.0, 0.0),
-            v(2.0, 0.0, 0.0),
-            v(2.0, 2.0, 0.0),
-            v(0.0, 2.0, 0.0),
-        ];
+        let p = [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(2.0, 0.0, 0.0), v(2.0, 2.0, 0.0), v(0.0, 2.0, 0.0)];
         let tris = triangulate(&p).unwrap();
         assert_eq!(tris.len(), 3);
         for t in &tris {
@@ -372,24 +316,14 @@ mod tests {
 
     #[test]
     fn bow_tie_is_rejected() {
-        let p = [
-            v(0.0, 0.0, 0.0),
-            v(1.0, 1.0, 0.0),
-            v(1.0, 0.0, 0.0),
-            v(0.0, 1.0, 0.0),
-        ];
+        let p = [v(0.0, 0.0, 0.0), v(1.0, 1.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)];
         let e = triangulate(&p).unwrap_err();
         assert!(e.contains("self-intersecting"), "{e}");
     }
 
     #[test]
     fn non_planar_is_rejected() {
-        let p = [
-            v(0.0, 0.0, 0.0),
-            v(1.0, 0.0, 0.0),
-            v(1.0, 1.0, 0.1),
-            v(0.0, 1.0, 0.0),
-        ];
+        let p = [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(1.0, 1.0, 0.1), v(0.0, 1.0, 0.0)];
         let e = triangulate(&p).unwrap_err();
         assert!(e.contains("not planar"), "{e}");
     }
@@ -403,30 +337,13 @@ mod tests {
 
     #[test]
     fn other_bad_inputs() {
-        assert!(
-            triangulate(&[v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0)])
-                .unwrap_err()
-                .contains("at least 3")
-        );
-        let e = triangulate(&[
-            v(0.0, 0.0, 0.0),
-            v(1.0, 0.0, 0.0),
-            v(1.0, 0.0, 0.0),
-            v(0.0, 1.0, 0.0),
-        ])
-        .unwrap_err();
+        assert!(triangulate(&[v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0)]).unwrap_err().contains("at least 3"));
+        let e = triangulate(&[v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)]).unwrap_err();
         assert!(e.contains("same point"), "{e}");
-        let e =
-            triangulate(&[v(0.0, 0.0, 0.0), v(f64::NAN, 0.0, 0.0), v(0.0, 1.0, 0.0)]).unwrap_err();
+        let e = triangulate(&[v(0.0, 0.0, 0.0), v(f64::NAN, 0.0, 0.0), v(0.0, 1.0, 0.0)]).unwrap_err();
         assert!(e.contains("finite"), "{e}");
         // A spike folding back along itself.
-        let e = triangulate(&[
-            v(0.0, 0.0, 0.0),
-            v(2.0, 0.0, 0.0),
-            v(1.0, 0.0, 0.0),
-            v(0.0, 1.0, 0.0),
-        ])
-        .unwrap_err();
+        let e = triangulate(&[v(0.0, 0.0, 0.0), v(2.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)]).unwrap_err();
         assert!(e.contains("self-intersecting"), "{e}");
         // Two vertices at the same place (not consecutive): edges touch.
         let e = triangulate(&[

@@ -33,6 +33,9 @@ pub enum GpuError {
     Wgpu(String),
 }
 
+/// A pipeline is specialised by its program, the scene's features and its entry point.
+type PipelineKey = (Program, FeatureKey, &'static str);
+
 /// A compiled pipeline and what compiling it cost.
 pub struct CachedPipeline {
     pub pipeline: wgpu::ComputePipeline,
@@ -50,7 +53,7 @@ pub struct GpuContext {
     scene_layout: wgpu::BindGroupLayout,
     render_layout: wgpu::BindGroupLayout,
     trace_layout: wgpu::BindGroupLayout,
-    pipelines: Mutex<HashMap<(Program, FeatureKey, &'static str), Arc<CachedPipeline>>>,
+    pipelines: Mutex<HashMap<PipelineKey, Arc<CachedPipeline>>>,
 }
 
 fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -141,7 +144,12 @@ impl GpuContext {
     }
 
     /// The pipeline for `entry` of `program` specialised to `key`, compiled on first use.
-    pub fn pipeline(&self, program: Program, key: FeatureKey, entry: &'static str) -> Result<Arc<CachedPipeline>, GpuError> {
+    pub fn pipeline(
+        &self,
+        program: Program,
+        key: FeatureKey,
+        entry: &'static str,
+    ) -> Result<Arc<CachedPipeline>, GpuError> {
         let key = key.for_program(program);
         if let Some(p) = self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)) {
             return Ok(p.clone());
@@ -175,9 +183,14 @@ impl GpuContext {
         Ok(cached)
     }
 
+    /// The most bytes one storage buffer binding may hold on this adapter.
+    pub fn max_binding_bytes(&self) -> u64 {
+        self.limits.max_storage_buffer_binding_size.min(self.limits.max_buffer_size)
+    }
+
     /// Fails with a clear error before allocating when `bytes` exceed one storage binding.
     pub fn check_binding_size(&self, what: &str, bytes: u64) -> Result<(), GpuError> {
-        let limit = (self.limits.max_storage_buffer_binding_size as u64).min(self.limits.max_buffer_size);
+        let limit = self.max_binding_bytes();
         if bytes > limit {
             return Err(GpuError::TooLarge { what: what.to_string(), need: bytes, limit });
         }
@@ -217,9 +230,7 @@ impl GpuContext {
             let _ = tx.send(r);
         });
         self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Wgpu(e.to_string()))?;
-        rx.recv()
-            .map_err(|e| GpuError::Wgpu(e.to_string()))?
-            .map_err(|e| GpuError::Wgpu(e.to_string()))?;
+        rx.recv().map_err(|e| GpuError::Wgpu(e.to_string()))?.map_err(|e| GpuError::Wgpu(e.to_string()))?;
         let data = slice.get_mapped_range().map_err(|e| GpuError::Wgpu(e.to_string()))?.to_vec();
         staging.unmap();
         Ok(data)
@@ -257,7 +268,10 @@ impl SceneBuffers {
         });
         let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: frame.as_entire_binding() }];
         entries.extend(
-            buffers.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: b.as_entire_binding() }),
+            buffers
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: b.as_entire_binding() }),
         );
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("scene"),

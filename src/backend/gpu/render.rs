@@ -41,7 +41,7 @@ pub fn render(
     let start = Instant::now();
     let (w, h) = (frame.width, frame.height);
     let row_bytes = w as u64 * PIXEL_BYTES;
-    let limit = (ctx.limits.max_storage_buffer_binding_size as u64).min(ctx.limits.max_buffer_size);
+    let limit = ctx.max_binding_bytes();
     if row_bytes > limit {
         return Err(GpuError::TooLarge { what: format!("one {w}-pixel image row"), need: row_bytes, limit });
     }
@@ -104,7 +104,11 @@ pub fn render(
                     pass.set_pipeline(&pipe.pipeline);
                     pass.set_bind_group(0, &scene.bind_group, &[]);
                     pass.set_bind_group(1, &out_group, &[]);
-                    pass.dispatch_workgroups(tile.tile_size[0].div_ceil(WORKGROUP), tile.tile_size[1].div_ceil(WORKGROUP), 1);
+                    pass.dispatch_workgroups(
+                        tile.tile_size[0].div_ceil(WORKGROUP),
+                        tile.tile_size[1].div_ceil(WORKGROUP),
+                        1,
+                    );
                     drop(pass);
                     n_tiles += 1;
                 }

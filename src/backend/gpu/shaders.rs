@@ -174,7 +174,11 @@ pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, Shader
 }
 
 /// Validates a composed module with every check naga has; returns its module info.
-pub fn validate(program: Program, key: FeatureKey, module: &naga::Module) -> Result<naga::valid::ModuleInfo, ShaderError> {
+pub fn validate(
+    program: Program,
+    key: FeatureKey,
+    module: &naga::Module,
+) -> Result<naga::valid::ModuleInfo, ShaderError> {
     naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
         .validate(module)
         .map_err(|e| ShaderError::Validate { program, key: key.label(), message: format!("{:?}", e.into_inner()) })
@@ -218,8 +222,19 @@ mod tests {
         // Case-sensitive identifiers of other primitives' code and types (naga_oil's name
         // decorations are upper-case base32 and cannot spell them).
         let absent_items = [
-            "Cylinder", "cylinder_roots", "cap_root", "Triangle", "triangle_intersect", "Shear", "Plane", "plane_roots",
-            "refract", "fresnel", "BvhNode", "slab", "nodes",
+            "Cylinder",
+            "cylinder_roots",
+            "cap_root",
+            "Triangle",
+            "triangle_intersect",
+            "Shear",
+            "Plane",
+            "plane_roots",
+            "refract",
+            "fresnel",
+            "BvhNode",
+            "slab",
+            "nodes",
         ];
         for absent in absent_items {
             assert!(!text.contains(absent), "{absent} found in the sphere-only shader");
@@ -230,5 +245,82 @@ mod tests {
             assert!(all_text.contains(present), "{present} missing from the all-features shader");
         }
         assert!(text.len() * 2 < all_text.len(), "{} vs {} bytes", text.len(), all_text.len());
+    }
+
+    /// Every struct the host writes into a GPU buffer has, in the composed WGSL module, the
+    /// size and member offsets of its Rust twin (as naga's layouter computes them).
+    #[test]
+    fn wgsl_struct_layouts_equal_the_rust_structs() {
+        use crate::accel::BvhNode;
+        use crate::gpu_types::*;
+        use std::mem::{offset_of, size_of};
+        macro_rules! layout {
+            ($wgsl:literal, $t:ty, [$($f:ident),*]) => {
+                ($wgsl, size_of::<$t>(), vec![$((stringify!($f), offset_of!($t, $f))),*])
+            };
+        }
+        let expected = [
+            layout!(
+                "Frame",
+                GpuFrame,
+                [
+                    eye,
+                    width,
+                    forward,
+                    height,
+                    right,
+                    spp,
+                    up,
+                    max_depth,
+                    background,
+                    num_planes,
+                    ambient,
+                    num_lights,
+                    tile_origin,
+                    tile_size,
+                    sample_base,
+                    out_pitch,
+                    out_first_row,
+                    flags
+                ]
+            ),
+            layout!("Sphere", GpuSphere, [center, radius, object, prim, material]),
+            layout!("Cylinder", GpuCylinder, [pa, radius, pb, caps, object, prim, material]),
+            layout!("Plane", GpuPlane, [point, object, normal, material]),
+            layout!("Triangle", GpuTriangle, [va, object, vb, prim, vc, material]),
+            layout!("BvhNode", BvhNode, [bmin, left_or_first, bmax, count]),
+            layout!("Material", GpuMaterial, [color, kind, radiance, ior]),
+            layout!("Light", GpuLight, [vector, kind, intensity]),
+            layout!("QueryRay", GpuQueryRay, [origin, tmin, dir, tmax]),
+            layout!("QueryHit", GpuQueryHit, [normal, t, object, prim, prim_ref, flags]),
+        ];
+        // Every struct is used by one of the two programs in its all-features variant.
+        let modules =
+            [compose(Program::Render, FeatureKey::ALL).unwrap(), compose(Program::Trace, FeatureKey::ALL).unwrap()];
+        for (name, size, fields) in expected {
+            let found = modules.iter().find_map(|m| {
+                let mut layouter = naga::proc::Layouter::default();
+                layouter.update(m.to_ctx()).unwrap();
+                m.types.iter().find_map(|(h, ty)| {
+                    let undecorated = ty.name.as_deref()?.split("X_naga_oil_mod_X").next()?;
+                    match &ty.inner {
+                        naga::TypeInner::Struct { members, .. } if undecorated == name => {
+                            Some((layouter[h].size, members.clone()))
+                        }
+                        _ => None,
+                    }
+                })
+            });
+            let (wgsl_size, members) =
+                found.unwrap_or_else(|| panic!("struct {name} not found in the composed shaders"));
+            assert_eq!(wgsl_size as usize, size, "size of {name}");
+            for (field, offset) in fields {
+                let m = members
+                    .iter()
+                    .find(|m| m.name.as_deref() == Some(field))
+                    .unwrap_or_else(|| panic!("{name}.{field} missing in WGSL"));
+                assert_eq!(m.offset as usize, offset, "offset of {name}.{field}");
+            }
+        }
     }
 }

@@ -35,15 +35,21 @@ fn from_gpu(h: &GpuQueryHit) -> Hit<f32> {
 
 /// Answers `rays` on the GPU: per ray the nearest hit, or with `all` every hit sorted by t.
 /// The same answers as `backend::cpu::trace::<f32>` (up to the GPU's float rounding).
-pub fn trace(ctx: &GpuContext, scene: &SceneBuffers, rays: &[RayQuery], all: bool) -> Result<Vec<Vec<Hit<f32>>>, GpuError> {
+pub fn trace(
+    ctx: &GpuContext,
+    scene: &SceneBuffers,
+    rays: &[RayQuery],
+    all: bool,
+) -> Result<Vec<Vec<Hit<f32>>>, GpuError> {
     let key = scene.key;
     let entry = if all { "trace_count" } else { "trace_nearest" };
     let first = ctx.pipeline(Program::Trace, key, entry)?;
     let write_all = if all { Some(ctx.pipeline(Program::Trace, key, "trace_all")?) } else { None };
     // The trace program reads no frame fields, but the uniform must hold valid data.
     ctx.queue.write_buffer(&scene.frame, 0, bytemuck::bytes_of(&GpuFrame::default()));
-    let limit = (ctx.limits.max_storage_buffer_binding_size as u64).min(ctx.limits.max_buffer_size);
-    let max_batch = (limit / HIT_BYTES).min(ctx.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP).max(1) as usize;
+    let limit = ctx.max_binding_bytes();
+    let max_batch =
+        (limit / HIT_BYTES).min(ctx.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP).max(1) as usize;
     let mut out = Vec::with_capacity(rays.len());
     let mut pending: Vec<&[RayQuery]> = rays.chunks(max_batch).rev().collect();
     while let Some(batch) = pending.pop() {
@@ -59,7 +65,11 @@ pub fn trace(ctx: &GpuContext, scene: &SceneBuffers, rays: &[RayQuery], all: boo
             let total: u64 = counts.iter().map(|&c| c as u64).sum();
             if total * HIT_BYTES > limit {
                 if batch.len() == 1 {
-                    return Err(GpuError::TooLarge { what: "the hits of one ray".into(), need: total * HIT_BYTES, limit });
+                    return Err(GpuError::TooLarge {
+                        what: "the hits of one ray".into(),
+                        need: total * HIT_BYTES,
+                        limit,
+                    });
                 }
                 let (a, b) = batch.split_at(batch.len() / 2);
                 pending.push(b);
