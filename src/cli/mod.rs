@@ -1,5 +1,6 @@
 //! Subcommands of `strahl`.
 
+mod bench;
 mod render;
 mod trace;
 
@@ -22,6 +23,8 @@ pub enum Command {
     Render(render::RenderArgs),
     /// Answer ray queries from a CSV file: nearest or every intersection per ray.
     Trace(trace::TraceArgs),
+    /// Measure shader compile and frame times: specialised against all-features shaders.
+    Bench(bench::BenchArgs),
 }
 
 /// Where the work runs.
@@ -37,6 +40,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Render(a) => render::run(a),
         Command::Trace(a) => trace::run(a),
+        Command::Bench(a) => bench::run(a),
     }
 }
 
