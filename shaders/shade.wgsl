@@ -7,7 +7,7 @@
 #import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, LIGHT_POINT, F32_MAX}
 #import strahl::bindings::{frame, materials, lights}
 #import strahl::traverse::{nearest_hit, prim_normal, prim_tag}
-#import strahl::spawn::offset_ray_origin
+#import strahl::spawn::spawn_origin
 #import strahl::raygen::primary_ray
 
 // Depth of the explicit ray stack (render::shade::WHITTED_STACK).
@@ -48,8 +48,8 @@ fn refract_dir(d: vec3<f32>, n: vec3<f32>, cos_i: f32, eta_ratio: f32) -> vec3<f
 #ifdef LIGHTS
 // Transmittance towards a light dist away: 0 behind an opaque surface, the product of the
 // dielectric colours crossed otherwise.
-fn shadow_transmittance(p: vec3<f32>, n: vec3<f32>, l: vec3<f32>, dist: f32) -> vec3<f32> {
-    var origin = offset_ray_origin(p, n);
+fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec3<f32>, dist: f32) -> vec3<f32> {
+    var origin = spawn_origin(o, d, t, n);
     var remaining = dist;
     var tr = vec3<f32>(1.0);
     for (var pass_ = 0u; pass_ < SHADOW_PASSES; pass_ += 1u) {
@@ -65,7 +65,7 @@ fn shadow_transmittance(p: vec3<f32>, n: vec3<f32>, l: vec3<f32>, dist: f32) -> 
         tr = tr * m.color;
         let hn = prim_normal(hit.prim, origin, l, hit.t, hit.part);
         let side = select(hn, -hn, dot(l, hn) < 0.0);
-        origin = offset_ray_origin(origin + l * hit.t, side);
+        origin = spawn_origin(origin, l, hit.t, side);
         remaining -= hit.t;
 #else
         return vec3<f32>(0.0);
@@ -75,7 +75,8 @@ fn shadow_transmittance(p: vec3<f32>, n: vec3<f32>, l: vec3<f32>, dist: f32) -> 
 }
 #endif
 
-fn direct_light(p: vec3<f32>, ns: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
+fn direct_light(o: vec3<f32>, d: vec3<f32>, t: f32, ns: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
+    let p = o + d * t;
     var sum = frame.ambient;
 #ifdef LIGHTS
     for (var i = 0u; i < frame.num_lights; i += 1u) {
@@ -107,7 +108,7 @@ fn direct_light(p: vec3<f32>, ns: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
         if cos <= 0.0 {
             continue;
         }
-        let tr = shadow_transmittance(p, ns, l, dist);
+        let tr = shadow_transmittance(o, d, t, ns, l, dist);
         sum += e * tr * (cos * INV_PI);
     }
 #endif
@@ -132,7 +133,6 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
         let tag = prim_tag(hit.prim);
         let m = materials[tag.z];
         let n = prim_normal(hit.prim, cur.origin, cur.dir, hit.t, hit.part);
-        let p = cur.origin + cur.dir * hit.t;
         let front = dot(cur.dir, n) < 0.0;
         let ns = select(-n, n, front);
         var handled = false;
@@ -145,7 +145,7 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
 #ifdef MIRROR
         if m.kind == MAT_MIRROR {
             if cur.depth < max_depth && sp < WHITTED_STACK {
-                stack[sp] = Pending(offset_ray_origin(p, ns), reflect_dir(cur.dir, ns), cur.weight * m.color, cur.depth + 1u);
+                stack[sp] = Pending(spawn_origin(cur.origin, cur.dir, hit.t, ns), reflect_dir(cur.dir, ns), cur.weight * m.color, cur.depth + 1u);
                 sp += 1u;
             }
             handled = true;
@@ -158,12 +158,12 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
                 let eta = select(1.0 / m.ior, m.ior, front);
                 let f = fresnel_dielectric(cos_i, eta);
                 if sp < WHITTED_STACK {
-                    stack[sp] = Pending(offset_ray_origin(p, ns), reflect_dir(cur.dir, ns), cur.weight * f, cur.depth + 1u);
+                    stack[sp] = Pending(spawn_origin(cur.origin, cur.dir, hit.t, ns), reflect_dir(cur.dir, ns), cur.weight * f, cur.depth + 1u);
                     sp += 1u;
                 }
                 if f < 1.0 && sp < WHITTED_STACK {
                     let t = refract_dir(cur.dir, ns, cos_i, 1.0 / eta);
-                    stack[sp] = Pending(offset_ray_origin(p, -ns), t, cur.weight * m.color * (1.0 - f), cur.depth + 1u);
+                    stack[sp] = Pending(spawn_origin(cur.origin, cur.dir, hit.t, -ns), t, cur.weight * m.color * (1.0 - f), cur.depth + 1u);
                     sp += 1u;
                 }
             }
@@ -171,7 +171,7 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
         }
 #endif
         if !handled {
-            color += cur.weight * direct_light(p, ns, m.color);
+            color += cur.weight * direct_light(cur.origin, cur.dir, hit.t, ns, m.color);
         }
     }
     return color;

@@ -1,15 +1,23 @@
-// Secondary-ray origins: twin of src/render/spawn.rs (Wachter & Binder, Ray Tracing Gems
-// ch. 6). The integer step on the float's bits cannot be fused or reassociated away.
+// Secondary-ray origins: twin of src/render/spawn.rs (Wachter & Binder, Ray Tracing Gems ch. 6,
+// with the ULP measured at |p0_i| + |t|, the magnitude that bounds the error of p_i, and 32
+// steps: see there for why and for the measurements).
 #define_import_path strahl::spawn
 
-fn offset_component(p: f32, n: f32) -> f32 {
-    if abs(p) < 1.0 / 32.0 {
-        return p + (1.0 / 65536.0) * n;
-    }
-    let ofs = i32(256.0 * n);
-    return bitcast<f32>(bitcast<i32>(p) + select(ofs, -ofs, p < 0.0));
+// One ULP of the positive finite float m, exactly (integer arithmetic on its bits).
+fn ulp_of(m: f32) -> f32 {
+    return bitcast<f32>(bitcast<u32>(m) + 1u) - m;
 }
 
-fn offset_ray_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(offset_component(p.x, n.x), offset_component(p.y, n.y), offset_component(p.z, n.z));
+fn offset_component(p: f32, o: f32, t: f32, n: f32) -> f32 {
+    let m = max(abs(o) + abs(t), abs(p));
+    if m < 1.0 / 32.0 {
+        return p + (1.0 / 65536.0) * n;
+    }
+    return p + 32.0 * n * ulp_of(m);
+}
+
+// The origin of a ray leaving the hit point o + t d on the side of the unit normal n.
+fn spawn_origin(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>) -> vec3<f32> {
+    let p = o + d * t;
+    return vec3<f32>(offset_component(p.x, o.x, t, n.x), offset_component(p.y, o.y, t, n.y), offset_component(p.z, o.z, t, n.z));
 }

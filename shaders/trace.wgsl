@@ -3,7 +3,8 @@
 // trace_nearest: one QueryHit per ray. Every-hit mode runs two passes: trace_count writes
 // each ray's hit count to `offsets`; the host turns the counts into exclusive offsets; then
 // trace_all writes each ray's hits at its offset and sorts them like primitives::sort_hits.
-#import strahl::types::{QueryRay, QueryHit, QUERY_FOUND, QUERY_ENTER, KIND_PLANE, INDEX_BITS}
+#import strahl::types::{QueryRay, QueryHit, QUERY_FOUND, QUERY_ENTER, KIND_PLANE, INDEX_BITS, F32_MAX}
+#import strahl::spawn::spawn_origin
 #ifdef BVH
 #import strahl::bindings::{nodes, prim_refs}
 #endif
@@ -50,6 +51,37 @@ fn trace_nearest(@builtin(global_invocation_id) gid: vec3<u32>) {
         hits[i] = make_hit(best.prim, q.origin, q.dir, best.t, best.part);
     } else {
         hits[i] = QueryHit(vec3<f32>(0.0), 0.0, 0u, 0u, 0u, 0u);
+    }
+}
+
+// Spawned rays (twin of backend::cpu::trace_spawn): rays come in pairs; ray 2i is traced to
+// its nearest hit, from which a ray leaves in the direction of ray 2i+1 (its origin unused),
+// starting at the hit point moved off the surface by spawn_origin to the side it
+// leaves from. hits[2i] is the first hit, hits[2i+1] the spawned ray's nearest hit.
+@compute @workgroup_size(WORKGROUP, 1, 1)
+fn trace_spawn(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if 2u * i + 1u >= arrayLength(&rays) {
+        return;
+    }
+    let q = rays[2u * i];
+    let dir2 = rays[2u * i + 1u].dir;
+    let none = QueryHit(vec3<f32>(0.0), 0.0, 0u, 0u, 0u, 0u);
+    let first = nearest_hit(q.origin, q.dir, q.tmin, q.tmax);
+    if !first.found {
+        hits[2u * i] = none;
+        hits[2u * i + 1u] = none;
+        return;
+    }
+    let h = make_hit(first.prim, q.origin, q.dir, first.t, first.part);
+    hits[2u * i] = h;
+    let side = select(-h.normal, h.normal, dot(dir2, h.normal) >= 0.0);
+    let o2 = spawn_origin(q.origin, q.dir, first.t, side);
+    let second = nearest_hit(o2, dir2, 0.0, F32_MAX);
+    if second.found {
+        hits[2u * i + 1u] = make_hit(second.prim, o2, dir2, second.t, second.part);
+    } else {
+        hits[2u * i + 1u] = none;
     }
 }
 

@@ -42,6 +42,13 @@ struct Nearest {
     found: bool,
 }
 
+#ifdef COUNT_VISITS
+// Work of the traversals since the caller last zeroed them: BVH nodes visited and primitives
+// tested (the viewer's BVH-cost heat map, shaders/view.wgsl).
+var<private> visited_nodes: u32;
+var<private> tested_prims: u32;
+#endif
+
 fn prim_ref(kind: u32, index: u32) -> u32 {
     return (kind << INDEX_BITS) | index;
 }
@@ -169,6 +176,9 @@ fn search_bound(best: Nearest) -> f32 {
 }
 
 fn offer_nearest(best: ptr<function, Nearest>, r: u32, o: vec3<f32>, d: vec3<f32>, tmin: f32) {
+#ifdef COUNT_VISITS
+    tested_prims += 1u;
+#endif
     let first = prim_first(r, o, d, tmin, search_bound(*best));
     let t = first.x;
     if t >= 0.0 && (t < (*best).t || (t == (*best).t && r < (*best).prim)) {
@@ -222,6 +232,9 @@ fn nearest_hit(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Nearest {
     var walking = slab(nodes[0], o, inv, tmin, search_bound(best)) >= 0.0;
     while walking {
         let n = nodes[node];
+#ifdef COUNT_VISITS
+        visited_nodes += 1u;
+#endif
         var next = 0xffffffffu;
         if n.count > 0u {
             let end = n.left_or_first + n.count;

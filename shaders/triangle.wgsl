@@ -30,6 +30,18 @@ fn shear_new(d: vec3<f32>) -> Shear {
     return Shear(vec3<u32>(kx, ky, kz), vec3<f32>(d[kx] * sz, d[ky] * sz, sz));
 }
 
+// a*b - c*d by Kahan's algorithm: with a fused fma its sign is exact (relative error <= 2u,
+// Jeannerod, Louvet & Muller 2013); where a driver splits fma into a multiply and an add
+// (Vulkan allows it), it is the plain rounded difference, which is exactly antisymmetric. Either
+// way swapping (a, b) with (c, d) flips the sign, which is what watertightness needs; a bare
+// `a * b - c * d` could be contracted into an fma on one product only and lose that.
+fn difference_of_products(a: f32, b: f32, c: f32, d: f32) -> f32 {
+    let cd = c * d;
+    let err = fma(-c, d, cd);
+    let dop = fma(a, b, -cd);
+    return dop + err;
+}
+
 // Hit distance in (tmin, tmax), or -1 when missed.
 fn triangle_intersect(tri: Triangle, o: vec3<f32>, sh: Shear, tmin: f32, tmax: f32) -> f32 {
     let a = tri.va - o;
@@ -44,9 +56,12 @@ fn triangle_intersect(tri: Triangle, o: vec3<f32>, sh: Shear, tmin: f32, tmax: f
     let by = b[ky] - sh.s.y * b[kz];
     let cx = c[kx] - sh.s.x * c[kz];
     let cy = c[ky] - sh.s.y * c[kz];
-    let u = cx * by - cy * bx;
-    let v = ax * cy - ay * cx;
-    let w = bx * ay - by * ax;
+    // Edge functions with the exact sign whatever the compiler fuses (see difference_of_products):
+    // a shared edge gives opposite signs in its two triangles, so no ray slips between them. A
+    // point exactly on an edge (0) is inside both: a double hit, never a gap.
+    let u = difference_of_products(cx, by, cy, bx);
+    let v = difference_of_products(ax, cy, ay, cx);
+    let w = difference_of_products(bx, ay, by, ax);
     if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
         return -1.0;
     }

@@ -18,3 +18,5 @@ pub mod primitives;
 pub mod query;
 pub mod render;
 pub mod scene;
+pub mod stiff;
+pub mod viewer;

@@ -41,6 +41,13 @@ pub trait Real:
     fn signum_nonzero(self) -> Self {
         if self < Self::ZERO { -Self::ONE } else { Self::ONE }
     }
+    /// a·b − c·d with the sign of the exact value, whatever the rounding (so that
+    /// `diff_of_products(a, b, c, d) == -diff_of_products(c, d, a, b)` in sign, and is zero
+    /// exactly when a·b = c·d): the edge functions of the watertight triangle test need this.
+    /// f32: the products are exact in f64, one rounding follows (relative error ≤ 2u).
+    /// f64: Kahan's algorithm with fused multiply-adds (Jeannerod, Louvet & Muller 2013:
+    /// relative error ≤ 2u).
+    fn diff_of_products(a: Self, b: Self, c: Self, d: Self) -> Self;
     /// pbrt's γ(n) = n·u / (1 − n·u), the bound on the relative error of n chained operations.
     fn gamma_bound(n: u32) -> Self {
         let nu = Self::from_f64(n as f64) * Self::UNIT_ROUNDOFF;
@@ -49,7 +56,7 @@ pub trait Real:
 }
 
 macro_rules! impl_real {
-    ($t:ty) => {
+    ($t:ty, $dop:expr) => {
         impl Real for $t {
             const ZERO: Self = 0.0;
             const ONE: Self = 1.0;
@@ -83,11 +90,19 @@ macro_rules! impl_real {
             fn max(self, other: Self) -> Self {
                 <$t>::max(self, other)
             }
+            #[inline(always)]
+            fn diff_of_products(a: Self, b: Self, c: Self, d: Self) -> Self {
+                ($dop)(a, b, c, d)
+            }
         }
     };
 }
-impl_real!(f32);
-impl_real!(f64);
+impl_real!(f32, |a: f32, b: f32, c: f32, d: f32| (a as f64 * b as f64 - c as f64 * d as f64) as f32);
+impl_real!(f64, |a: f64, b: f64, c: f64, d: f64| {
+    let cd = c * d;
+    let err = (-c).mul_add(d, cd);
+    a.mul_add(b, -cd) + err
+});
 
 /// A 3-vector of [`Real`]s.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -262,6 +277,20 @@ mod tests {
         let y = V3::new(0.0, 1.0, 0.0);
         assert_eq!(x.cross(y), V3::new(0.0, 0.0, 1.0));
         assert_eq!(y.cross(x), V3::new(0.0, 0.0, -1.0));
+    }
+
+    #[test]
+    fn difference_of_products_has_the_exact_sign() {
+        // a·b and c·d differ in their last bits only: the naive form rounds both to the same
+        // float and returns 0; the exact difference is 2⁻⁴⁸ (f32 inputs).
+        let (a, b) = (1.0f32 + f32::EPSILON, 1.0f32 - f32::EPSILON);
+        let (c, d) = (1.0f32, 1.0f32);
+        assert_eq!(a * b - c * d, 0.0);
+        let dop = f32::diff_of_products(a, b, c, d);
+        assert!(dop < 0.0 && f32::diff_of_products(c, d, a, b) == -dop, "{dop}");
+        let (a, b) = (1.0f64 + f64::EPSILON, 1.0f64 - f64::EPSILON);
+        assert_eq!(a * b - 1.0, 0.0);
+        assert_eq!(f64::diff_of_products(a, b, 1.0, 1.0), -f64::EPSILON * f64::EPSILON);
     }
 
     #[test]

@@ -44,3 +44,27 @@ pub fn trace<R: crate::math::Real>(
         })
         .collect()
 }
+
+/// Spawned rays, the twin of `trace_spawn` in `shaders/trace.wgsl`: `pairs[i].0` is traced to
+/// its nearest hit; from there a ray leaves along `pairs[i].1` (unit), starting at the hit
+/// point moved off the surface by [`crate::render::spawn::spawn_origin`] to the side it
+/// leaves from. Returns (first hit, spawned ray's nearest hit) per pair.
+pub fn trace_spawn(
+    prims: &crate::primitives::Primitives<f32>,
+    bvh: &crate::accel::Bvh,
+    pairs: &[(crate::math::Ray<f32>, crate::math::V3<f32>)],
+) -> Vec<super::SpawnHits> {
+    use crate::accel::traverse::nearest;
+    use crate::math::Ray;
+    pairs
+        .par_iter()
+        .map(|(ray, dir2)| {
+            let Some(first) = nearest(bvh, prims, ray, 0.0, f32::INFINITY) else {
+                return (None, None);
+            };
+            let side = if dir2.dot(first.normal) >= 0.0 { first.normal } else { -first.normal };
+            let o2 = crate::render::spawn::spawn_origin(ray, first.t, side);
+            (Some(first), nearest(bvh, prims, &Ray::new(o2, *dir2), 0.0, f32::INFINITY))
+        })
+        .collect()
+}

@@ -2,7 +2,9 @@
 
 mod bench;
 mod render;
+mod stiff;
 mod trace;
+mod view;
 
 use clap::{Parser, Subcommand, ValueEnum};
 
@@ -25,6 +27,10 @@ pub enum Command {
     Trace(trace::TraceArgs),
     /// Measure shader compile and frame times: specialised against all-features shaders.
     Bench(bench::BenchArgs),
+    /// Run the numerical-stability suite: robust against textbook formulations, CPU and GPU.
+    Stiff(stiff::StiffArgs),
+    /// Open an interactive window that renders a scene progressively on the GPU.
+    View(view::ViewArgs),
 }
 
 /// Where the work runs.
@@ -41,6 +47,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(a) => render::run(a),
         Command::Trace(a) => trace::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Stiff(a) => stiff::run(a),
+        Command::View(a) => view::run(a),
     }
 }
 

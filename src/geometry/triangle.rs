@@ -64,9 +64,13 @@ impl<R: Real> Triangle<R> {
         let by = b[s.ky] - s.sy * b[s.kz];
         let cx = c[s.kx] - s.sx * c[s.kz];
         let cy = c[s.ky] - s.sy * c[s.kz];
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
+        // Edge functions with the exact sign (see Real::diff_of_products): a shared edge gives
+        // opposite signs in its two triangles whatever the rounding, so no ray slips between.
+        // A point exactly on an edge (value 0) is inside both triangles: a double hit, never a
+        // gap; the nearest-hit search keeps the smaller PrimRef. No f64 is needed on the GPU.
+        let u = R::diff_of_products(cx, by, cy, bx);
+        let v = R::diff_of_products(ax, cy, ay, cx);
+        let w = R::diff_of_products(bx, ay, by, ax);
         let zero = R::ZERO;
         if (u < zero || v < zero || w < zero) && (u > zero || v > zero || w > zero) {
             return None;

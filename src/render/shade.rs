@@ -7,7 +7,7 @@
 //! same contributions in the same order.
 
 use super::camera::primary_ray;
-use super::spawn::offset_ray_origin;
+use super::spawn::spawn_origin;
 use crate::accel::{Bvh, traverse};
 use crate::gpu_types::{GpuFrame, GpuLight, GpuMaterial, GpuScene, LIGHT_POINT};
 use crate::math::{Ray, V3};
@@ -54,10 +54,10 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
     0.5 * (r_parl * r_parl + r_perp * r_perp)
 }
 
-/// Transmittance from `p` towards a light `dist` away: 0 if an opaque surface blocks it, the
-/// product of dielectric colours crossed otherwise.
-fn shadow_transmittance(inp: &ShadeInputs, p: V3<f32>, n: V3<f32>, l: V3<f32>, dist: f32) -> V3<f32> {
-    let mut origin = offset_ray_origin(p, n);
+/// Transmittance from the hit at `t` along `from` towards a light `dist` away: 0 if an opaque
+/// surface blocks it, the product of dielectric colours crossed otherwise.
+fn shadow_transmittance(inp: &ShadeInputs, from: &Ray<f32>, t: f32, n: V3<f32>, l: V3<f32>, dist: f32) -> V3<f32> {
+    let mut origin = spawn_origin(from, t, n);
     let mut remaining = dist;
     let mut tr = V3::splat(1.0f32);
     for _ in 0..SHADOW_PASSES {
@@ -72,15 +72,16 @@ fn shadow_transmittance(inp: &ShadeInputs, p: V3<f32>, n: V3<f32>, l: V3<f32>, d
         tr = tr.mul_elem(V3::from_array(m.color));
         // Continue from the far side of the surface just crossed.
         let side = if l.dot(hit.normal) < 0.0 { -hit.normal } else { hit.normal };
-        origin = offset_ray_origin(ray.at(hit.t), side);
+        origin = spawn_origin(&ray, hit.t, side);
         remaining -= hit.t;
     }
     V3::zero()
 }
 
-/// Direct light on a diffuse surface at `p` with shading normal `ns`: ambient plus
-/// Σ E·cosθ/π over unshadowed lights.
-fn direct_light(inp: &ShadeInputs, p: V3<f32>, ns: V3<f32>, albedo: V3<f32>) -> V3<f32> {
+/// Direct light on a diffuse surface hit at `t` along `ray`, shading normal `ns`: ambient
+/// plus Σ E·cosθ/π over unshadowed lights.
+fn direct_light(inp: &ShadeInputs, ray: &Ray<f32>, t: f32, ns: V3<f32>, albedo: V3<f32>) -> V3<f32> {
+    let p = ray.at(t);
     let mut sum = V3::from_array(inp.frame.ambient);
     for light in &inp.gpu.lights[..inp.frame.num_lights as usize] {
         let (l, dist, e) = light_at(light, p);
@@ -88,7 +89,7 @@ fn direct_light(inp: &ShadeInputs, p: V3<f32>, ns: V3<f32>, albedo: V3<f32>) -> 
         if cos <= 0.0 {
             continue;
         }
-        let tr = shadow_transmittance(inp, p, ns, l, dist);
+        let tr = shadow_transmittance(inp, ray, t, ns, l, dist);
         sum += e.mul_elem(tr) * (cos * INV_PI);
     }
     albedo.mul_elem(sum)
@@ -124,7 +125,6 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
             continue;
         };
         let m: &GpuMaterial = &inp.gpu.materials[hit.tag.material as usize];
-        let p = ray.at(hit.t);
         let front = ray.dir.dot(hit.normal) < 0.0;
         let ns = if front { hit.normal } else { -hit.normal };
         let albedo = V3::from_array(m.color);
@@ -136,7 +136,7 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
                 if depth < max_depth && sp < WHITTED_STACK {
                     let r = reflect(ray.dir, ns);
                     stack[sp] = Pending {
-                        ray: Ray::new(offset_ray_origin(p, ns), r),
+                        ray: Ray::new(spawn_origin(&ray, hit.t, ns), r),
                         weight: weight.mul_elem(albedo),
                         depth: depth + 1,
                     };
@@ -151,7 +151,7 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
                     if sp < WHITTED_STACK {
                         let r = reflect(ray.dir, ns);
                         stack[sp] = Pending {
-                            ray: Ray::new(offset_ray_origin(p, ns), r),
+                            ray: Ray::new(spawn_origin(&ray, hit.t, ns), r),
                             weight: weight * f,
                             depth: depth + 1,
                         };
@@ -160,7 +160,7 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
                     if f < 1.0 && sp < WHITTED_STACK {
                         let t = refract(ray.dir, ns, cos_i, 1.0 / eta);
                         stack[sp] = Pending {
-                            ray: Ray::new(offset_ray_origin(p, -ns), t),
+                            ray: Ray::new(spawn_origin(&ray, hit.t, -ns), t),
                             weight: weight.mul_elem(albedo) * (1.0 - f),
                             depth: depth + 1,
                         };
@@ -169,7 +169,7 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
                 }
             }
             _ => {
-                color += weight.mul_elem(direct_light(inp, p, ns, albedo));
+                color += weight.mul_elem(direct_light(inp, &ray, hit.t, ns, albedo));
             }
         }
     }

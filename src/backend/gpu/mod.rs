@@ -83,23 +83,39 @@ impl GpuContext {
         Self::from_adapter(&adapter)
     }
 
+    /// What strahl asks of a device on `adapter`: the adapter's own limits (the largest
+    /// buffers it allows) and timestamp queries where offered. Also for callers that create
+    /// the device themselves (the viewer, through eframe).
+    pub fn device_descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'static> {
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        wgpu::DeviceDescriptor {
+            label: Some("strahl"),
+            required_features: if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() },
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }
+    }
+
     pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
-        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&Self::device_descriptor(adapter)))
+            .map_err(|e| GpuError::Device(e.to_string()))?;
+        Self::from_device(device, queue, adapter.get_info())
+    }
+
+    /// Wraps a device created elsewhere (e.g. eframe's), with the limits and features it has.
+    pub fn from_device(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        adapter_info: wgpu::AdapterInfo,
+    ) -> Result<Self, GpuError> {
+        let limits = device.limits();
         if limits.max_storage_buffers_per_shader_stage < 11 {
             return Err(GpuError::Device(format!(
-                "strahl needs 11 storage buffers per shader stage, this adapter offers {}",
+                "strahl needs 11 storage buffers per shader stage, this device offers {}",
                 limits.max_storage_buffers_per_shader_stage
             )));
         }
-        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let required_features = if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() };
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("strahl"),
-            required_features,
-            required_limits: limits.clone(),
-            ..Default::default()
-        }))
-        .map_err(|e| GpuError::Device(e.to_string()))?;
+        let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let uniform = wgpu::BindGroupLayoutEntry {
             binding: 0,
             visibility: wgpu::ShaderStages::COMPUTE,
@@ -127,7 +143,7 @@ impl GpuContext {
         Ok(Self {
             device,
             queue,
-            adapter_info: adapter.get_info(),
+            adapter_info,
             limits,
             timestamps,
             scene_layout,
@@ -162,7 +178,7 @@ impl GpuContext {
             source: wgpu::ShaderSource::Naga(std::borrow::Cow::Owned(module)),
         });
         let io_layout = match program {
-            Program::Render => &self.render_layout,
+            Program::Render | Program::View => &self.render_layout,
             Program::Trace => &self.trace_layout,
         };
         let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -181,6 +197,27 @@ impl GpuContext {
         let cached = Arc::new(CachedPipeline { pipeline, compile_time: start.elapsed() });
         self.pipelines.lock().expect("pipeline cache lock").insert((program, key, entry), cached.clone());
         Ok(cached)
+    }
+
+    /// The pipeline for `entry` of `program` specialised to `key` if it was compiled already.
+    pub fn cached_pipeline(
+        &self,
+        program: Program,
+        key: FeatureKey,
+        entry: &'static str,
+    ) -> Option<Arc<CachedPipeline>> {
+        let key = key.for_program(program);
+        self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)).cloned()
+    }
+
+    /// The output bind group (group 1) of the render and view programs over `buffer`, an
+    /// `array<vec4<f32>>` storage buffer of one image band.
+    pub fn output_bind_group(&self, buffer: &wgpu::Buffer) -> wgpu::BindGroup {
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("render output"),
+            layout: &self.render_layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: buffer.as_entire_binding() }],
+        })
     }
 
     /// The most bytes one storage buffer binding may hold on this adapter.

@@ -55,11 +55,7 @@ pub fn render(
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
-    let out_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("render output"),
-        layout: &ctx.render_layout,
-        entries: &[wgpu::BindGroupEntry { binding: 0, resource: output.as_entire_binding() }],
-    });
+    let out_group = ctx.output_bind_group(&output);
     let tiles_x = w.div_ceil(TILE);
     let max_tiles = tiles_x * band_rows.div_ceil(TILE);
     let timer = ctx.timestamps.then(|| Timer::new(ctx, max_tiles));
@@ -71,48 +67,24 @@ pub fn render(
     let mut row0 = 0u32;
     while row0 < h {
         let rows = band_rows.min(h - row0);
+        let band = Band { width: w, first_row: row0, rows, tile: TILE };
         for s in 0..frame.spp {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
-            let mut n_tiles = 0u32;
-            for ty in (row0..row0 + rows).step_by(TILE as usize) {
-                for tx in (0..w).step_by(TILE as usize) {
-                    let tile = GpuFrame {
-                        tile_origin: [tx, ty],
-                        tile_size: [TILE.min(w - tx), TILE.min(row0 + rows - ty)],
-                        sample_base: frame.sample_base + s,
-                        spp: 1,
-                        out_pitch: w,
-                        out_first_row: row0,
-                        flags: if s > 0 { FRAME_ACCUMULATE } else { 0 },
-                        ..*frame
-                    };
-                    // Each tile needs its own uniforms: a small per-tile buffer copied into the
-                    // frame uniform right before its dispatch, in command order.
-                    let staging = wgpu::util::DeviceExt::create_buffer_init(
-                        &ctx.device,
-                        &wgpu::util::BufferInitDescriptor {
-                            label: Some("tile frame"),
-                            contents: bytemuck::bytes_of(&tile),
-                            usage: wgpu::BufferUsages::COPY_SRC,
-                        },
-                    );
-                    enc.copy_buffer_to_buffer(&staging, 0, &scene.frame, 0, std::mem::size_of::<GpuFrame>() as u64);
-                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some("render tile"),
-                        timestamp_writes: timer.as_ref().map(|t| t.writes(n_tiles)),
-                    });
-                    pass.set_pipeline(&pipe.pipeline);
-                    pass.set_bind_group(0, &scene.bind_group, &[]);
-                    pass.set_bind_group(1, &out_group, &[]);
-                    pass.dispatch_workgroups(
-                        tile.tile_size[0].div_ceil(WORKGROUP),
-                        tile.tile_size[1].div_ceil(WORKGROUP),
-                        1,
-                    );
-                    drop(pass);
-                    n_tiles += 1;
-                }
-            }
+            let pass_frame = GpuFrame { sample_base: frame.sample_base + s, ..*frame };
+            let accumulate = s > 0;
+            let n_tiles = band.tile_count();
+            record_pass(
+                ctx,
+                &mut enc,
+                scene,
+                &pipe.pipeline,
+                &out_group,
+                &pass_frame,
+                &band,
+                0..n_tiles,
+                accumulate,
+                timer.as_ref().map(|t| (t, 0)),
+            );
             if let Some(t) = &timer {
                 t.resolve(&mut enc, n_tiles);
             }
@@ -138,15 +110,107 @@ pub fn render(
     Ok((img, stats))
 }
 
+/// The rows of the image one output buffer holds, cut into tiles of `tile`×`tile` pixels
+/// (row-major order: tile `i` is column `i % tiles_x`, row `i / tiles_x` of the band).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Band {
+    /// Image width in pixels (also the output buffer's row pitch).
+    pub width: u32,
+    /// First image row of the band (row 0 of the output buffer).
+    pub first_row: u32,
+    pub rows: u32,
+    /// Tile side in pixels.
+    pub tile: u32,
+}
+
+impl Band {
+    /// The whole `width`×`height` image as one band (one output buffer).
+    pub fn whole(width: u32, height: u32, tile: u32) -> Self {
+        Self { width, first_row: 0, rows: height, tile }
+    }
+
+    pub fn tiles_x(&self) -> u32 {
+        self.width.div_ceil(self.tile)
+    }
+
+    pub fn tile_count(&self) -> u32 {
+        self.tiles_x() * self.rows.div_ceil(self.tile)
+    }
+
+    /// Origin (image pixels) and size of tile `i`.
+    pub fn tile_rect(&self, i: u32) -> ([u32; 2], [u32; 2]) {
+        let tx = (i % self.tiles_x()) * self.tile;
+        let ty = self.first_row + (i / self.tiles_x()) * self.tile;
+        ([tx, ty], [self.tile.min(self.width - tx), self.tile.min(self.first_row + self.rows - ty)])
+    }
+}
+
+/// Records into `enc` the dispatches of tiles `tiles` of one sample pass (sample
+/// `frame.sample_base`, one sample per pixel) of `pipeline` over `band`, writing into the
+/// output buffer bound by `output` (group 1: `array<vec4<f32>>`, [`GpuContext::output_bind_group`]):
+/// overwriting, or with `accumulate` adding to what it holds. No readback: the caller
+/// submits `enc` and decides what happens to the buffer. With `timer: (t, first)`, dispatch
+/// `k` of this call writes timestamp pair `first + k` of `t`. Returns the number of
+/// dispatches recorded.
+#[allow(clippy::too_many_arguments)]
+pub fn record_pass(
+    ctx: &GpuContext,
+    enc: &mut wgpu::CommandEncoder,
+    scene: &SceneBuffers,
+    pipeline: &wgpu::ComputePipeline,
+    output: &wgpu::BindGroup,
+    frame: &GpuFrame,
+    band: &Band,
+    tiles: std::ops::Range<u32>,
+    accumulate: bool,
+    timer: Option<(&Timer, u32)>,
+) -> u32 {
+    let mut n = 0u32;
+    for i in tiles.start..tiles.end.min(band.tile_count()) {
+        let (origin, size) = band.tile_rect(i);
+        let tile = GpuFrame {
+            tile_origin: origin,
+            tile_size: size,
+            spp: 1,
+            out_pitch: band.width,
+            out_first_row: band.first_row,
+            flags: (frame.flags & !FRAME_ACCUMULATE) | if accumulate { FRAME_ACCUMULATE } else { 0 },
+            ..*frame
+        };
+        // Each tile needs its own uniforms: a small per-tile buffer copied into the frame
+        // uniform right before its dispatch, in command order.
+        let staging = wgpu::util::DeviceExt::create_buffer_init(
+            &ctx.device,
+            &wgpu::util::BufferInitDescriptor {
+                label: Some("tile frame"),
+                contents: bytemuck::bytes_of(&tile),
+                usage: wgpu::BufferUsages::COPY_SRC,
+            },
+        );
+        enc.copy_buffer_to_buffer(&staging, 0, &scene.frame, 0, std::mem::size_of::<GpuFrame>() as u64);
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("render tile"),
+            timestamp_writes: timer.map(|(t, first)| t.writes(first + n)),
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &scene.bind_group, &[]);
+        pass.set_bind_group(1, output, &[]);
+        pass.dispatch_workgroups(size[0].div_ceil(WORKGROUP), size[1].div_ceil(WORKGROUP), 1);
+        drop(pass);
+        n += 1;
+    }
+    n
+}
+
 /// Timestamp queries around each dispatch of one submission.
-pub(super) struct Timer {
+pub struct Timer {
     set: wgpu::QuerySet,
     resolve: wgpu::Buffer,
     period_ns: f64,
 }
 
 impl Timer {
-    pub(super) fn new(ctx: &GpuContext, max_passes: u32) -> Self {
+    pub fn new(ctx: &GpuContext, max_passes: u32) -> Self {
         let count = 2 * max_passes.max(1);
         Self {
             set: ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
@@ -164,7 +228,7 @@ impl Timer {
         }
     }
 
-    pub(super) fn writes(&self, pass: u32) -> wgpu::ComputePassTimestampWrites<'_> {
+    pub fn writes(&self, pass: u32) -> wgpu::ComputePassTimestampWrites<'_> {
         wgpu::ComputePassTimestampWrites {
             query_set: &self.set,
             beginning_of_pass_write_index: Some(2 * pass),
@@ -172,12 +236,12 @@ impl Timer {
         }
     }
 
-    pub(super) fn resolve(&self, enc: &mut wgpu::CommandEncoder, passes: u32) {
+    pub fn resolve(&self, enc: &mut wgpu::CommandEncoder, passes: u32) {
         enc.resolve_query_set(&self.set, 0..2 * passes, &self.resolve, 0);
     }
 
     /// Total nanoseconds of the `passes` dispatches just submitted.
-    pub(super) fn read(&self, ctx: &GpuContext, passes: u32) -> Result<f64, GpuError> {
+    pub fn read(&self, ctx: &GpuContext, passes: u32) -> Result<f64, GpuError> {
         let bytes = ctx.read_buffer(&self.resolve, passes as u64 * 16)?;
         let ts: &[u64] = bytemuck::cast_slice(&bytes);
         Ok(ts.chunks(2).map(|p| p[1].saturating_sub(p[0]) as f64 * self.period_ns).sum())

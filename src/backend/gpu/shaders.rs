@@ -32,6 +32,9 @@ pub enum Program {
     Render,
     /// `trace.wgsl`: ray queries.
     Trace,
+    /// `view.wgsl`: the viewer's debug images (normals, depth, BVH cost) of primary rays;
+    /// composed with `COUNT_VISITS`, which makes the traversal count its work.
+    View,
 }
 
 impl Program {
@@ -39,6 +42,7 @@ impl Program {
         match self {
             Program::Render => ("shaders/render.wgsl", include_str!("../../../shaders/render.wgsl")),
             Program::Trace => ("shaders/trace.wgsl", include_str!("../../../shaders/trace.wgsl")),
+            Program::View => ("shaders/view.wgsl", include_str!("../../../shaders/view.wgsl")),
         }
     }
 }
@@ -105,11 +109,11 @@ impl FeatureKey {
         self.0 & flag != 0
     }
 
-    /// The key as the program sees it: the trace program ignores shading flags.
+    /// The key as the program sees it: the trace and view programs ignore shading flags.
     pub fn for_program(self, p: Program) -> FeatureKey {
         match p {
             Program::Render => self,
-            Program::Trace => FeatureKey(self.0 & Self::GEOMETRY),
+            Program::Trace | Program::View => FeatureKey(self.0 & Self::GEOMETRY),
         }
     }
 
@@ -148,7 +152,10 @@ fn compose_error(e: &ComposerError) -> String {
 /// Composes `program` for `key` into a naga module.
 pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, ShaderError> {
     let key = key.for_program(program);
-    let defs = key.shader_defs();
+    let mut defs = key.shader_defs();
+    if program == Program::View {
+        defs.insert("COUNT_VISITS".into(), ShaderDefValue::Bool(true));
+    }
     let mut composer = Composer::default();
     for (file, src) in MODULES {
         composer
@@ -201,7 +208,7 @@ mod tests {
             .into_par_iter()
             .flat_map_iter(|bits| {
                 let key = FeatureKey(bits);
-                [Program::Render, Program::Trace]
+                [Program::Render, Program::Trace, Program::View]
                     .into_iter()
                     .filter(move |&p| p == Program::Render || key.for_program(p) == key)
                     .filter_map(move |p| match compose(p, key) {

@@ -141,3 +141,39 @@ fn dispatch(
     }
     ctx.queue.submit([enc.finish()]);
 }
+
+/// Spawned rays on the GPU, the twin of [`crate::backend::cpu::trace_spawn`]: per pair, the
+/// first hit and the nearest hit of the ray spawned from it.
+pub fn trace_spawn(
+    ctx: &GpuContext,
+    scene: &SceneBuffers,
+    pairs: &[(crate::math::Ray<f32>, V3<f32>)],
+) -> Result<Vec<crate::backend::SpawnHits>, GpuError> {
+    let pipe = ctx.pipeline(Program::Trace, scene.key, "trace_spawn")?;
+    ctx.queue.write_buffer(&scene.frame, 0, bytemuck::bytes_of(&GpuFrame::default()));
+    let max_pairs = (ctx.max_binding_bytes() / (2 * HIT_BYTES))
+        .min(ctx.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP)
+        .max(1) as usize;
+    let mut out = Vec::with_capacity(pairs.len());
+    for batch in pairs.chunks(max_pairs) {
+        let rays: Vec<GpuQueryRay> = batch
+            .iter()
+            .flat_map(|(r, d2)| {
+                [
+                    GpuQueryRay { origin: r.origin.to_array(), tmin: 0.0, dir: r.dir.to_array(), tmax: f32::INFINITY },
+                    GpuQueryRay { origin: [0.0; 3], tmin: 0.0, dir: d2.to_array(), tmax: f32::INFINITY },
+                ]
+            })
+            .collect();
+        let n = 2 * batch.len() as u64;
+        let ray_buf = ctx.storage_buffer("spawn rays", &rays)?;
+        let hits_buf = rw_buffer(ctx, "spawn hits", n * HIT_BYTES)?;
+        let dummy = rw_buffer(ctx, "no offsets", 4)?;
+        dispatch(ctx, &pipe.pipeline, scene, &ray_buf, &hits_buf, &dummy, batch.len() as u64);
+        let bytes = ctx.read_buffer(&hits_buf, n * HIT_BYTES)?;
+        let hits: &[GpuQueryHit] = bytemuck::cast_slice(&bytes);
+        let get = |h: &GpuQueryHit| (h.flags & QUERY_FOUND != 0).then(|| from_gpu(h));
+        out.extend(hits.chunks(2).map(|p| (get(&p[0]), get(&p[1]))));
+    }
+    Ok(out)
+}

@@ -1,0 +1,53 @@
+// The viewer's debug images (strahl view): one invocation per pixel of the dispatched tile,
+// like render.wgsl, one primary ray per dispatch (sample frame.sample_base), written or added
+// (FRAME_ACCUMULATE) to the same output buffer. shaders/present.wgsl turns the sums into colours.
+//
+// The mode is frame.flags >> VIEW_MODE_SHIFT (src/viewer/gpu.rs: ViewMode):
+//   normals: (front-face unit normal, 1) where the ray hits, 0 where it misses;
+//   depth:   (t, 0, 0, 1) where it hits, 0 where it misses;
+//   cost:    (BVH nodes visited, primitives tested, 0, 1) by the nearest-hit search.
+// Composed with COUNT_VISITS (shaders/traverse.wgsl counts its work) and the geometry flags only.
+#import strahl::types::{FRAME_ACCUMULATE, F32_MAX}
+#import strahl::bindings::frame
+#import strahl::raygen::primary_ray
+#import strahl::traverse::{nearest_hit, prim_normal, visited_nodes, tested_prims}
+
+@group(1) @binding(0) var<storage, read_write> output: array<vec4<f32>>;
+
+const VIEW_MODE_SHIFT: u32 = 8u;
+const VIEW_NORMALS: u32 = 1u;
+const VIEW_DEPTH: u32 = 2u;
+const VIEW_COST: u32 = 3u;
+
+@compute @workgroup_size(8, 8, 1)
+fn view(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= frame.tile_size.x || gid.y >= frame.tile_size.y {
+        return;
+    }
+    let x = frame.tile_origin.x + gid.x;
+    let y = frame.tile_origin.y + gid.y;
+    if x >= frame.width || y >= frame.height {
+        return;
+    }
+    let ray = primary_ray(frame, x, y, frame.sample_base);
+    visited_nodes = 0u;
+    tested_prims = 0u;
+    let hit = nearest_hit(ray.origin, ray.dir, 0.0, F32_MAX);
+    let mode = frame.flags >> VIEW_MODE_SHIFT;
+    var v = vec4<f32>(0.0);
+    if mode == VIEW_COST {
+        v = vec4<f32>(f32(visited_nodes), f32(tested_prims), 0.0, 1.0);
+    } else if hit.found {
+        if mode == VIEW_NORMALS {
+            v = vec4<f32>(prim_normal(hit.prim, ray.origin, ray.dir, hit.t, hit.part), 1.0);
+        } else if mode == VIEW_DEPTH {
+            v = vec4<f32>(hit.t, 0.0, 0.0, 1.0);
+        }
+    }
+    let i = (y - frame.out_first_row) * frame.out_pitch + x;
+    if (frame.flags & FRAME_ACCUMULATE) != 0u {
+        output[i] += v;
+    } else {
+        output[i] = v;
+    }
+}

@@ -1,0 +1,60 @@
+//! `strahl view`.
+
+use anyhow::{Result, bail};
+use clap::Args;
+use std::path::PathBuf;
+use strahl::viewer::{ViewOptions, gpu::ViewMode};
+
+#[derive(Args, Debug)]
+pub struct ViewArgs {
+    /// Scene file (TOML); reloaded when it changes on disk.
+    pub scene: PathBuf,
+    /// Window size in points, WxH.
+    #[arg(long, default_value = "1280x720", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Render resolution as a fraction of the image area's pixels (0.1 to 1).
+    #[arg(long, default_value_t = 0.5)]
+    pub scale: f32,
+    /// What the image shows.
+    #[arg(long, value_enum, default_value = "whitted")]
+    pub mode: ViewMode,
+    /// Samples per pixel to accumulate before the viewer stops refining.
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub max_samples: u32,
+    /// Run this many frames and exit (with --screenshot: this many full sample passes),
+    /// printing frame timings.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100000))]
+    pub frames: Option<u32>,
+    /// Save the window as this PNG file after --frames frames (default 1), then exit.
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("expected WxH, e.g. 1280x720, not {s:?}"))?;
+    let side = |v: &str| match v.trim().parse::<u32>() {
+        Ok(n) if (64..=16384).contains(&n) => Ok(n),
+        _ => Err(format!("{v:?} is not a window side from 64 to 16384")),
+    };
+    Ok((side(w)?, side(h)?))
+}
+
+pub fn run(a: ViewArgs) -> Result<()> {
+    if !(0.1..=1.0).contains(&a.scale) {
+        bail!("--scale must be from 0.1 to 1, not {}", a.scale);
+    }
+    if let Some(p) = &a.screenshot
+        && !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        bail!("{}: the screenshot is saved as PNG; use a .png file name", p.display());
+    }
+    strahl::viewer::run(ViewOptions {
+        scene: a.scene,
+        size: [a.size.0, a.size.1],
+        scale: a.scale,
+        mode: a.mode,
+        max_samples: a.max_samples,
+        frames: a.frames,
+        screenshot: a.screenshot,
+    })
+}
