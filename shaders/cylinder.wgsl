@@ -16,7 +16,15 @@ fn cap_root(radius: f32, o: vec3<f32>, d: vec3<f32>, c: vec3<f32>, n: vec3<f32>)
     return vec2<f32>(t, select(0.0, 1.0, dot(q, q) <= radius * radius));
 }
 
-fn cylinder_roots(cy: Cylinder, ro: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots {
+// The open side's crossings: the stable roots (t_lo, t_hi, valid) of the infinite cylinder,
+// their alphas along the axis, and the unit axis.
+struct CylinderSide {
+    q: vec3<f32>,
+    alpha: vec2<f32>,
+    axis: vec3<f32>,
+}
+
+fn cylinder_side(cy: Cylinder, ro: vec3<f32>, d: vec3<f32>) -> CylinderSide {
     let dp = cy.pb - cy.pa;
     let len = length(dp);
     let axis = dp / len;
@@ -29,27 +37,32 @@ fn cylinder_roots(cy: Cylinder, ro: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f3
     let c = dot(oa, oa) - r2;
     let e = dot(oa, d);
     let disc = a * r2 - e * e;
-    var roots = roots_empty();
     let q = stable_quadratic(a, beta, c, disc);
+    let o_axial = dot(o, axis);
+    let d_axial = dot(d, axis);
+    let alpha = vec2<f32>((o_axial + q.x * d_axial) / len, (o_axial + q.y * d_axial) / len);
+    return CylinderSide(q, alpha, axis);
+}
+
+fn cylinder_roots(cy: Cylinder, ro: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots {
+    let side = cylinder_side(cy, ro, d);
+    let q = side.q;
+    var roots = roots_empty();
     if q.z != 0.0 {
-        let o_axial = dot(o, axis);
-        let d_axial = dot(d, axis);
-        let alpha0 = (o_axial + q.x * d_axial) / len;
-        if alpha0 >= 0.0 && alpha0 <= 1.0 {
+        if side.alpha.x >= 0.0 && side.alpha.x <= 1.0 {
             roots_push(&roots, q.x, PART_SURFACE, tmin, tmax);
         }
         // A tangent ray's double root is one point of contact, reported once.
-        let alpha1 = (o_axial + q.y * d_axial) / len;
-        if q.y != q.x && alpha1 >= 0.0 && alpha1 <= 1.0 {
+        if q.y != q.x && side.alpha.y >= 0.0 && side.alpha.y <= 1.0 {
             roots_push(&roots, q.y, PART_SURFACE, tmin, tmax);
         }
     }
     if cy.caps != 0u {
-        let c1 = cap_root(cy.radius, ro, d, cy.pa, -axis);
+        let c1 = cap_root(cy.radius, ro, d, cy.pa, -side.axis);
         if c1.y != 0.0 {
             roots_push(&roots, c1.x, PART_CAP_P1, tmin, tmax);
         }
-        let c2 = cap_root(cy.radius, ro, d, cy.pb, axis);
+        let c2 = cap_root(cy.radius, ro, d, cy.pb, side.axis);
         if c2.y != 0.0 {
             roots_push(&roots, c2.x, PART_CAP_P2, tmin, tmax);
         }
@@ -82,38 +95,23 @@ fn keep_first(best: vec2<f32>, t: f32, part: u32, tmin: f32, tmax: f32) -> vec2<
 // The first root in (tmin, tmax) as (t, part), or t = -1: cylinder_roots(..).t[0] without
 // the list. Candidates in the order cylinder_roots pushes them.
 fn cylinder_first(cy: Cylinder, ro: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> vec2<f32> {
-    let dp = cy.pb - cy.pa;
-    let len = length(dp);
-    let axis = dp / len;
-    let o = ro - cy.pa;
-    let oa = cross(o, axis);
-    let da = cross(d, axis);
-    let a = dot(da, da);
-    let beta = dot(oa, da);
-    let r2 = cy.radius * cy.radius;
-    let c = dot(oa, oa) - r2;
-    let e = dot(oa, d);
-    let disc = a * r2 - e * e;
+    let side = cylinder_side(cy, ro, d);
+    let q = side.q;
     var best = vec2<f32>(-1.0, 0.0);
-    let q = stable_quadratic(a, beta, c, disc);
     if q.z != 0.0 {
-        let o_axial = dot(o, axis);
-        let d_axial = dot(d, axis);
-        let alpha0 = (o_axial + q.x * d_axial) / len;
-        if alpha0 >= 0.0 && alpha0 <= 1.0 {
+        if side.alpha.x >= 0.0 && side.alpha.x <= 1.0 {
             best = keep_first(best, q.x, PART_SURFACE, tmin, tmax);
         }
-        let alpha1 = (o_axial + q.y * d_axial) / len;
-        if alpha1 >= 0.0 && alpha1 <= 1.0 {
+        if side.alpha.y >= 0.0 && side.alpha.y <= 1.0 {
             best = keep_first(best, q.y, PART_SURFACE, tmin, tmax);
         }
     }
     if cy.caps != 0u {
-        let c1 = cap_root(cy.radius, ro, d, cy.pa, -axis);
+        let c1 = cap_root(cy.radius, ro, d, cy.pa, -side.axis);
         if c1.y != 0.0 {
             best = keep_first(best, c1.x, PART_CAP_P1, tmin, tmax);
         }
-        let c2 = cap_root(cy.radius, ro, d, cy.pb, axis);
+        let c2 = cap_root(cy.radius, ro, d, cy.pb, side.axis);
         if c2.y != 0.0 {
             best = keep_first(best, c2.x, PART_CAP_P2, tmin, tmax);
         }

@@ -4,7 +4,8 @@
 #import strahl::types::{Sphere, PART_SURFACE}
 #import strahl::roots::{Roots, roots_empty, roots_push, stable_quadratic}
 
-fn sphere_roots(s: Sphere, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots {
+// The stable roots (t_lo, t_hi, valid) of the ray's line with the sphere.
+fn sphere_quadratic(s: Sphere, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     let f = o - s.center;
     let a = dot(d, d);
     let beta = dot(d, f);
@@ -12,8 +13,12 @@ fn sphere_roots(s: Sphere, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> 
     let c = dot(f, f) - r2;
     let l = f - d * (beta / a);
     let disc = a * (r2 - dot(l, l));
+    return stable_quadratic(a, beta, c, disc);
+}
+
+fn sphere_roots(s: Sphere, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots {
     var roots = roots_empty();
-    let q = stable_quadratic(a, beta, c, disc);
+    let q = sphere_quadratic(s, o, d);
     if q.z != 0.0 {
         roots_push(&roots, q.x, PART_SURFACE, tmin, tmax);
         // A tangent ray's double root is one point of contact, reported once.
@@ -31,14 +36,7 @@ fn sphere_normal(s: Sphere, o: vec3<f32>, d: vec3<f32>, t: f32) -> vec3<f32> {
 // The first root in (tmin, tmax) as (t, part), or t = -1: the same root as
 // sphere_roots(..).t[0], without building the list (nearest-hit traversal).
 fn sphere_first(s: Sphere, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> vec2<f32> {
-    let f = o - s.center;
-    let a = dot(d, d);
-    let beta = dot(d, f);
-    let r2 = s.radius * s.radius;
-    let c = dot(f, f) - r2;
-    let l = f - d * (beta / a);
-    let disc = a * (r2 - dot(l, l));
-    let q = stable_quadratic(a, beta, c, disc);
+    let q = sphere_quadratic(s, o, d);
     if q.z != 0.0 {
         if q.x > tmin && q.x < tmax {
             return vec2<f32>(q.x, 0.0);

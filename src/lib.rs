@@ -17,6 +17,7 @@ pub mod metrics;
 pub mod primitives;
 pub mod query;
 pub mod render;
+pub mod rng;
 pub mod scene;
 pub mod stiff;
 pub mod viewer;

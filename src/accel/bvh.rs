@@ -243,7 +243,7 @@ fn flatten(node: &BuildNode, out: &mut Vec<BvhNode>, depth: u32) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::testutil::TestRng;
+    use crate::geometry::testutil::{TestRays, TestRng};
     use crate::geometry::{Sphere, Triangle};
     use crate::primitives::{Tag, Tagged};
 

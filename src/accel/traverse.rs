@@ -134,7 +134,7 @@ pub fn all<R: Real>(bvh: &Bvh, prims: &Primitives<R>, ray: &Ray<R>, tmin: R, tma
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::testutil::{TestRng, ray_f32};
+    use crate::geometry::testutil::{TestRays, TestRng, ray_f32};
     use crate::geometry::{Cylinder, Plane, Sphere, Triangle};
     use crate::primitives::{Tag, Tagged};
 

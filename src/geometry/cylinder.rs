@@ -118,7 +118,7 @@ impl<R: Real> Shape<R> for Cylinder<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::testutil::{TestRng, ray_f32};
+    use crate::geometry::testutil::{TestRays, TestRng, ray_f32};
 
     fn unit_z(caps: bool) -> Cylinder<f64> {
         Cylinder { p1: V3::new(0.0, 0.0, 0.0), p2: V3::new(0.0, 0.0, 2.0), radius: 1.0, caps }

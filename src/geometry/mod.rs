@@ -102,35 +102,25 @@ pub fn stable_quadratic<R: Real>(a: R, beta: R, c: R, disc: R) -> Option<(R, R)>
 pub(crate) mod testutil {
     use crate::math::{Ray, V3};
 
-    /// A small deterministic generator for test rays (SplitMix64).
-    pub struct TestRng(pub u64);
-    impl TestRng {
-        pub fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
+    pub use crate::rng::SplitMix64 as TestRng;
+
+    /// Test-ray helpers on top of the shared generator.
+    pub trait TestRays {
+        fn in_cube(&mut self, h: f64) -> V3<f64>;
+        fn unit_vector(&mut self) -> V3<f64>;
+        fn ray_towards(&mut self, h: f64, target: V3<f64>, target_h: f64) -> Ray<f64>;
+    }
+
+    impl TestRays for TestRng {
+        fn in_cube(&mut self, h: f64) -> V3<f64> {
+            self.cube(h)
         }
-        /// Uniform in [lo, hi).
-        pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-            lo + (hi - lo) * ((self.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
-        }
-        pub fn in_cube(&mut self, h: f64) -> V3<f64> {
-            V3::new(self.range(-h, h), self.range(-h, h), self.range(-h, h))
-        }
-        pub fn unit_vector(&mut self) -> V3<f64> {
-            loop {
-                let v = self.in_cube(1.0);
-                let l = v.length_squared();
-                if l > 1e-6 && l <= 1.0 {
-                    return v.normalize();
-                }
-            }
+        fn unit_vector(&mut self) -> V3<f64> {
+            self.direction()
         }
         /// A ray from a random point in a cube of half-size `h` aimed at a random point in a
         /// cube of half-size `target_h` around `target`.
-        pub fn ray_towards(&mut self, h: f64, target: V3<f64>, target_h: f64) -> Ray<f64> {
+        fn ray_towards(&mut self, h: f64, target: V3<f64>, target_h: f64) -> Ray<f64> {
             let o = self.in_cube(h);
             let p = target + self.in_cube(target_h);
             Ray::new(o, (p - o).normalize())

@@ -56,7 +56,7 @@ impl<R: Real> Shape<R> for Sphere<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::testutil::{TestRng, ray_f32};
+    use crate::geometry::testutil::{TestRays, TestRng, ray_f32};
 
     /// The lecture's "Problem Time": p_v = (0,0,−10), the ray through p_i = (0,0,0).
     #[test]

@@ -109,7 +109,7 @@ impl<R: Real> Shape<R> for Triangle<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::testutil::{TestRng, ray_f32};
+    use crate::geometry::testutil::{TestRays, TestRng, ray_f32};
 
     fn tri() -> Triangle<f64> {
         Triangle { v: [V3::new(0.0, 0.0, 5.0), V3::new(1.0, 0.0, 5.0), V3::new(0.0, 1.0, 5.0)] }

@@ -38,44 +38,8 @@ impl Options<'_> {
     }
 }
 
-/// SplitMix64.
-pub struct Rng(pub u64);
-impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    pub fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-    pub fn cube(&mut self, h: f64) -> V3<f64> {
-        V3::new(self.range(-h, h), self.range(-h, h), self.range(-h, h))
-    }
-    pub fn direction(&mut self) -> V3<f64> {
-        loop {
-            let v = self.cube(1.0);
-            let l = v.length_squared();
-            if l > 1e-4 && l <= 1.0 {
-                return v.normalize();
-            }
-        }
-    }
-    /// A unit vector perpendicular to `d`.
-    pub fn perpendicular(&mut self, d: V3<f64>) -> V3<f64> {
-        loop {
-            let p = d.cross(self.direction());
-            if p.length() > 0.1 {
-                return p.normalize();
-            }
-        }
-    }
-}
+/// The cases' generator.
+pub use crate::rng::SplitMix64 as Rng;
 
 /// A ray as strahl takes it: f64 origin and direction rounded to f32.
 fn ray32(o: V3<f64>, d: V3<f64>) -> Ray<f32> {
