@@ -224,15 +224,21 @@ fn random_cylinder(rng: &mut Rng, radius: f64, length: f64, at: V3<f64>) -> Cyli
     Cylinder { p1: at - axis * (0.5 * length), p2: at + axis * (0.5 * length), radius, caps: true }
 }
 
+/// A capped cylinder of radius 10^U[−1, 1] and 1 to 6 radii long, near the origin; with its
+/// unit axis and radius.
+fn moderate_cylinder(rng: &mut Rng) -> (Cylinder<f64>, V3<f64>, f64) {
+    let radius = 10f64.powf(rng.range(-1.0, 1.0));
+    let (length, at) = (radius * rng.range(1.0, 6.0), rng.cube(10.0));
+    let c = random_cylinder(rng, radius, length, at);
+    (c, (c.p2 - c.p1).normalize(), radius)
+}
+
 /// Grazing rays on cylinders: across the side at r·(1 ± 10^−k) from the axis, and in the
 /// plane of a cap (edge-on).
 pub fn grazing_cylinders(n_shapes: usize, rays: usize, rng: &mut Rng) -> Vec<Group> {
     (0..n_shapes)
         .map(|_| {
-            let radius = 10f64.powf(rng.range(-1.0, 1.0));
-            let (length, at) = (radius * rng.range(1.0, 6.0), rng.cube(10.0));
-            let c = random_cylinder(rng, radius, length, at);
-            let axis = (c.p2 - c.p1).normalize();
+            let (c, axis, radius) = moderate_cylinder(rng);
             let rays = (0..rays)
                 .map(|i| {
                     let d = rng.perpendicular(axis);
@@ -256,10 +262,7 @@ pub fn grazing_cylinders(n_shapes: usize, rays: usize, rng: &mut Rng) -> Vec<Gro
 pub fn parallel_to_axis(n_shapes: usize, rays: usize, rng: &mut Rng) -> Vec<Group> {
     (0..n_shapes)
         .map(|_| {
-            let radius = 10f64.powf(rng.range(-1.0, 1.0));
-            let (length, at) = (radius * rng.range(1.0, 6.0), rng.cube(10.0));
-            let c = random_cylinder(rng, radius, length, at);
-            let axis = (c.p2 - c.p1).normalize();
+            let (c, axis, radius) = moderate_cylinder(rng);
             let rays = (0..rays)
                 .map(|i| {
                     let inside = i % 2 == 0;
