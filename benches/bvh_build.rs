@@ -18,6 +18,7 @@ use strahl::accel::{Bvh, traverse};
 use strahl::geometry::Triangle;
 use strahl::math::{Ray, V3};
 use strahl::primitives::{Primitives, Tag, Tagged};
+use strahl::rng::SplitMix64;
 use strahl::scene::mesh::bumpy_torus;
 
 const RAYS: usize = 100_000;
@@ -49,31 +50,6 @@ fn bounds(prims: &Primitives<f32>) -> (V3<f64>, V3<f64>) {
     (lo, hi)
 }
 
-/// SplitMix64.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn unit_vector(&mut self) -> V3<f64> {
-        loop {
-            let v = V3::new(self.uniform(), self.uniform(), self.uniform()) * 2.0 - V3::splat(1.0);
-            let l = v.length_squared();
-            if l > 1e-6 && l <= 1.0 {
-                return v / l.sqrt();
-            }
-        }
-    }
-}
-
 /// The f32 ray strahl would trace: origin rounded, direction rounded and renormalised.
 fn ray_f32(o: V3<f64>, d: V3<f64>) -> Ray<f32> {
     Ray::new(o.cast(), d.normalize().cast::<f32>().normalize())
@@ -82,14 +58,14 @@ fn ray_f32(o: V3<f64>, d: V3<f64>) -> Ray<f32> {
 /// embree_bench.py's `random_rays`: origins on a sphere of radius 1.5·|box diagonal| around
 /// the box centre, aimed at uniform points of the box.
 fn random_rays(n: usize, (lo, hi): (V3<f64>, V3<f64>)) -> Vec<Ray<f32>> {
-    let mut rng = Rng(1);
+    let mut rng = SplitMix64(1);
     let c = (lo + hi) * 0.5;
     let rad = 1.5 * (hi - lo).length();
     (0..n)
         .map(|_| {
-            let o = c + rng.unit_vector() * rad;
+            let o = c + rng.direction() * rad;
             let e = hi - lo;
-            let t = lo + V3::new(e.x * rng.uniform(), e.y * rng.uniform(), e.z * rng.uniform());
+            let t = lo + V3::new(e.x * rng.unit(), e.y * rng.unit(), e.z * rng.unit());
             ray_f32(o, t - o)
         })
         .collect()

@@ -14,6 +14,20 @@ struct RayPair {
     dir: vec3<f32>,
 }
 
+// The image pixel (x, y) that invocation gid of a tile dispatch covers; z = 0 where the
+// invocation lies outside the tile or the image (dispatches round up to whole workgroups).
+fn tile_pixel(f: Frame, gid: vec3<u32>) -> vec3<u32> {
+    let x = f.tile_origin.x + gid.x;
+    let y = f.tile_origin.y + gid.y;
+    let inside = gid.x < f.tile_size.x && gid.y < f.tile_size.y && x < f.width && y < f.height;
+    return vec3<u32>(x, y, select(0u, 1u, inside));
+}
+
+// Index of image pixel (x, y) in the output buffer, which holds rows from out_first_row on.
+fn output_index(f: Frame, x: u32, y: u32) -> u32 {
+    return (y - f.out_first_row) * f.out_pitch + x;
+}
+
 fn primary_ray(f: Frame, x: u32, y: u32, s: u32) -> RayPair {
     let off = sample_offset(s);
     let u = 2.0 * (f32(x) + off.x) / f32(f.width) - 1.0;

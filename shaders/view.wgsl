@@ -9,7 +9,7 @@
 // Composed with COUNT_VISITS (shaders/traverse.wgsl counts its work) and the geometry flags only.
 #import strahl::types::{FRAME_ACCUMULATE, F32_MAX}
 #import strahl::bindings::frame
-#import strahl::raygen::primary_ray
+#import strahl::raygen::{primary_ray, tile_pixel, output_index}
 #import strahl::traverse::{nearest_hit, prim_normal, visited_nodes, tested_prims}
 
 @group(1) @binding(0) var<storage, read_write> output: array<vec4<f32>>;
@@ -21,15 +21,11 @@ const VIEW_COST: u32 = 3u;
 
 @compute @workgroup_size(8, 8, 1)
 fn view(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= frame.tile_size.x || gid.y >= frame.tile_size.y {
+    let px = tile_pixel(frame, gid);
+    if px.z == 0u {
         return;
     }
-    let x = frame.tile_origin.x + gid.x;
-    let y = frame.tile_origin.y + gid.y;
-    if x >= frame.width || y >= frame.height {
-        return;
-    }
-    let ray = primary_ray(frame, x, y, frame.sample_base);
+    let ray = primary_ray(frame, px.x, px.y, frame.sample_base);
     visited_nodes = 0u;
     tested_prims = 0u;
     let hit = nearest_hit(ray.origin, ray.dir, 0.0, F32_MAX);
@@ -44,7 +40,7 @@ fn view(@builtin(global_invocation_id) gid: vec3<u32>) {
             v = vec4<f32>(hit.t, 0.0, 0.0, 1.0);
         }
     }
-    let i = (y - frame.out_first_row) * frame.out_pitch + x;
+    let i = output_index(frame, px.x, px.y);
     if (frame.flags & FRAME_ACCUMULATE) != 0u {
         output[i] += v;
     } else {

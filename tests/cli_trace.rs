@@ -9,6 +9,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use strahl::rng::SplitMix64;
 
 /// The hits CSV header (`strahl::query::HITS_HEADER`), spelled out: it is a file format.
 const HEADER: &str = "ray,t,x,y,z,nx,ny,nz,object,prim,enter";
@@ -333,12 +334,12 @@ fn equal_t_hits_are_ordered_by_object() {
 /// with A, B and C as the lecture's formula gives it.
 #[test]
 fn rays_aimed_at_sphere_c_from_all_sides() {
-    let mut rng = Rng(0x5EED);
+    let mut rng = SplitMix64(0x5EED);
     let c = LECTURE_SPHERES[2].0;
     let mut rays = Vec::new();
     while rays.len() < 40 {
-        let o = add(c, scale(rng.unit_vector(), 30.0));
-        let target = add(c, scale(rng.unit_vector(), 1.2 * rng.uniform()));
+        let o = add(c, scale(rng.direction().to_array(), 30.0));
+        let target = add(c, scale(rng.direction().to_array(), 1.2 * rng.unit()));
         let d = sub(target, o);
         // Stay clear of tangency with any sphere (hit or miss is decided by rounding there).
         if lecture_crossings(o, d).1 > 1e-3 {
@@ -359,35 +360,6 @@ fn rays_aimed_at_sphere_c_from_all_sides() {
 // ---------------------------------------------------------------------------------------
 // Random rays over the seed scene.
 
-/// SplitMix64: a small deterministic generator.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-    fn unit_vector(&mut self) -> [f64; 3] {
-        loop {
-            let v = [self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0)];
-            let l = dot(v, v);
-            if l > 1e-6 && l <= 1.0 {
-                return scale(v, 1.0 / l.sqrt());
-            }
-        }
-    }
-}
-
 fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
@@ -406,11 +378,11 @@ fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
 /// mesh, where f32 rounding decides between neighbouring triangles), and from the camera's
 /// eye through random points of its view.
 fn seed_rays(n: usize, seed: u64) -> String {
-    let mut rng = Rng(seed);
+    let mut rng = SplitMix64(seed);
     let centre = [1.0, 4.0, 9.0];
     let mut rows = Vec::with_capacity(n);
     for i in 0..n {
-        let around = add(centre, scale(rng.unit_vector(), 45.0));
+        let around = add(centre, scale(rng.direction().to_array(), 45.0));
         let (o, target) = match i % 3 {
             0 => {
                 let t = [rng.range(-8.0, 12.0), rng.range(-5.5, 14.5), rng.range(2.0, 18.0)];

@@ -109,13 +109,6 @@ pub fn nearest<R: Real>(bvh: &Bvh, prims: &Primitives<R>, ray: &Ray<R>, tmin: R,
     best.found.then(|| prims.hit(best.prim, ray, best.t, best.part))
 }
 
-/// Whether anything blocks the ray within (tmin, tmax): the shadow-ray query.
-pub fn occluded<R: Real>(bvh: &Bvh, prims: &Primitives<R>, ray: &Ray<R>, tmin: R, tmax: R) -> bool {
-    // A nearest-hit search that stops at the first hit would be faster; the shading code
-    // only needs the answer, and this keeps one traversal to mirror on the GPU.
-    nearest(bvh, prims, ray, tmin, tmax).is_some()
-}
-
 /// Every hit in (tmin, tmax), sorted as [`Primitives::all_brute`] sorts them.
 pub fn all<R: Real>(bvh: &Bvh, prims: &Primitives<R>, ray: &Ray<R>, tmin: R, tmax: R) -> Vec<Hit<R>> {
     let mut hits = Vec::new();
