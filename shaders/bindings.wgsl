@@ -2,7 +2,7 @@
 // in variants whose defs use it; empty arrays are bound to a one-element dummy buffer.
 #define_import_path strahl::bindings
 
-#import strahl::types::{Frame, Material, Light}
+#import strahl::types::{Frame, Material, Light, Emitter}
 #ifdef BVH
 #import strahl::types::BvhNode
 #endif
@@ -38,3 +38,4 @@
 #endif
 @group(0) @binding(7) var<storage, read> materials: array<Material>;
 @group(0) @binding(8) var<storage, read> lights: array<Light>;
+@group(0) @binding(9) var<storage, read> emitters: array<Emitter>;

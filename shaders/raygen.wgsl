@@ -29,7 +29,11 @@ fn output_index(f: Frame, x: u32, y: u32) -> u32 {
 }
 
 fn primary_ray(f: Frame, x: u32, y: u32, s: u32) -> RayPair {
-    let off = sample_offset(s);
+    return ray_through(f, x, y, sample_offset(s));
+}
+
+// The ray through sub-pixel position off in [0, 1)^2 of pixel (x, y).
+fn ray_through(f: Frame, x: u32, y: u32, off: vec2<f32>) -> RayPair {
     let u = 2.0 * (f32(x) + off.x) / f32(f.width) - 1.0;
     let v = 1.0 - 2.0 * (f32(y) + off.y) / f32(f.height);
     let dir = f.forward + f.right * u + f.up * v;

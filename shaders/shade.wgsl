@@ -1,7 +1,8 @@
 // Whitted shading: twin of src/render/shade.rs (same stack order, same sums).
 //
 // Shader defs: LIGHTS (any light; with it POINT_LIGHTS / DIRECTIONAL_LIGHTS), MIRROR,
-// DIELECTRIC, EMISSIVE (which material kinds exist; diffuse is always compiled).
+// DIELECTRIC, EMISSIVE (which material kinds exist; diffuse is always compiled), and
+// SHADOW_CROSSING (DIELECTRIC or EMISSIVE: shadow rays may pass surfaces).
 #define_import_path strahl::shade
 
 #import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, LIGHT_POINT, F32_MAX}
@@ -57,12 +58,14 @@ fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec
         if !hit.found {
             return tr;
         }
-#ifdef DIELECTRIC
+#ifdef SHADOW_CROSSING
+        // Dielectrics tint the shadow ray; emissive surfaces (lights) let it through.
         let m = materials[prim_tag(hit.prim).z];
-        if m.kind != MAT_DIELECTRIC {
+        if m.kind == MAT_DIELECTRIC {
+            tr = tr * m.color;
+        } else if m.kind != MAT_EMISSIVE {
             return vec3<f32>(0.0);
         }
-        tr = tr * m.color;
         let hn = prim_normal(hit.prim, origin, l, hit.t, hit.part);
         let side = select(hn, -hn, dot(l, hn) < 0.0);
         origin = spawn_origin(origin, l, hit.t, side);

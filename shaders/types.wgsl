@@ -21,6 +21,10 @@ struct Frame {
     out_pitch: u32,
     out_first_row: u32,
     flags: u32,
+    num_emitters: u32,
+    emitter_norm: f32,
+    rr_depth: u32,
+    seed: u32,
 }
 
 struct Sphere {
@@ -72,13 +76,24 @@ struct Material {
     kind: u32,
     radiance: vec3<f32>,
     ior: f32,
+    roughness: f32,
+    flags: u32,
+    pad_a: u32,
+    pad_b: u32,
 }
 
 struct Light {
     vector: vec3<f32>,
     kind: u32,
     intensity: vec3<f32>,
-    pad: u32,
+    flags: u32,
+}
+
+struct Emitter {
+    prim: u32,
+    kind: u32,
+    cdf: f32,
+    pdf: f32,
 }
 
 struct QueryRay {
@@ -118,6 +133,10 @@ const MAT_EMISSIVE: u32 = 3u;
 
 const LIGHT_POINT: u32 = 0u;
 const LIGHT_DIRECTIONAL: u32 = 1u;
+const LIGHT_STAND_IN: u32 = 1u;
+const MATERIAL_TWO_SIDED: u32 = 1u;
+const EMITTER_AREA: u32 = 0u;
+const EMITTER_LIGHT: u32 = 1u;
 
 const FRAME_ACCUMULATE: u32 = 1u;
 const QUERY_FOUND: u32 = 1u;

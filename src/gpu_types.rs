@@ -66,7 +66,15 @@ pub struct GpuMaterial {
     pub kind: u32,
     pub radiance: [f32; 3],
     pub ior: f32,
+    /// GGX α of a mirror (path mode), 0 for smooth.
+    pub roughness: f32,
+    /// [`MATERIAL_TWO_SIDED`].
+    pub flags: u32,
+    pub _pad: [u32; 2],
 }
+
+/// Material flag: an emissive surface emits from both faces.
+pub const MATERIAL_TWO_SIDED: u32 = 1;
 
 pub const LIGHT_POINT: u32 = 0;
 pub const LIGHT_DIRECTIONAL: u32 = 1;
@@ -78,7 +86,30 @@ pub struct GpuLight {
     pub vector: [f32; 3],
     pub kind: u32,
     pub intensity: [f32; 3],
-    pub _pad: u32,
+    /// [`LIGHT_STAND_IN`].
+    pub flags: u32,
+}
+
+/// Light flag: a point light standing in for an emissive object in Whitted mode (which has no
+/// area lights); path mode samples the object itself and skips it.
+pub const LIGHT_STAND_IN: u32 = 1;
+
+/// Emitter kind: an emissive triangle or sphere, `prim` its [`crate::primitives::PrimRef`].
+pub const EMITTER_AREA: u32 = 0;
+/// Emitter kind: a point or directional light, `prim` its index in the lights buffer.
+pub const EMITTER_LIGHT: u32 = 1;
+
+/// One light source path mode samples for next-event estimation, chosen with probability
+/// `pdf` (proportional to its power) by inverting the cumulative `cdf`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuEmitter {
+    pub prim: u32,
+    /// [`EMITTER_AREA`] or [`EMITTER_LIGHT`].
+    pub kind: u32,
+    /// Σ pdf of this emitter and those before it (the last is 1).
+    pub cdf: f32,
+    pub pdf: f32,
 }
 
 /// Per-dispatch uniforms: the camera frame, image and tile, and render settings.
@@ -112,6 +143,15 @@ pub struct GpuFrame {
     pub out_first_row: u32,
     /// [`FRAME_ACCUMULATE`]: add to the output instead of overwriting it.
     pub flags: u32,
+    /// Path mode: number of entries in the emitter buffer.
+    pub num_emitters: u32,
+    /// Path mode: 1 / Σ emitter power weights, so that an area emitter of radiance L is
+    /// chosen, per unit of its area, with density mean(L) · `emitter_norm`.
+    pub emitter_norm: f32,
+    /// Path mode: Russian roulette may end a path once it has this many segments.
+    pub rr_depth: u32,
+    /// Path mode: seed of the random numbers (renders with different seeds are independent).
+    pub seed: u32,
 }
 
 /// Frame flag: the dispatch adds its samples' sum to the output buffer.
@@ -128,6 +168,10 @@ pub struct GpuScene {
     pub prim_refs: Vec<u32>,
     pub materials: Vec<GpuMaterial>,
     pub lights: Vec<GpuLight>,
+    /// Path mode's light sources: emissive triangles and spheres, point and directional lights.
+    pub emitters: Vec<GpuEmitter>,
+    /// 1 / Σ emitter weights ([`GpuFrame::emitter_norm`]); 0 without emitters.
+    pub emitter_norm: f32,
 }
 
 fn rgb(v: [f64; 3]) -> [f32; 3] {
@@ -137,7 +181,7 @@ fn rgb(v: [f64; 3]) -> [f32; 3] {
 impl GpuScene {
     pub fn new(scene: &Scene, prims: &Primitives<f32>, bvh: &Bvh) -> Self {
         let tag = |t: &crate::primitives::Tag| (t.object, t.prim, t.material);
-        Self {
+        let mut g = Self {
             spheres: prims
                 .spheres
                 .iter()
@@ -195,6 +239,9 @@ impl GpuScene {
                     kind: m.kind as u32,
                     radiance: rgb(m.radiance),
                     ior: m.ior as f32,
+                    roughness: m.roughness as f32,
+                    flags: if m.two_sided { MATERIAL_TWO_SIDED } else { 0 },
+                    _pad: [0; 2],
                 })
                 .collect(),
             lights: scene
@@ -205,17 +252,24 @@ impl GpuScene {
                         vector: position.cast::<f32>().to_array(),
                         kind: LIGHT_POINT,
                         intensity: rgb(*intensity),
-                        _pad: 0,
+                        flags: 0,
                     },
                     Light::Directional { direction, intensity } => GpuLight {
                         vector: direction.cast::<f32>().normalize().to_array(),
                         kind: LIGHT_DIRECTIONAL,
                         intensity: rgb(*intensity),
-                        _pad: 0,
+                        flags: 0,
                     },
                 })
                 .collect(),
-        }
+            emitters: Vec::new(),
+            emitter_norm: 0.0,
+        };
+        g.lights.extend(crate::render::emitters::stand_in_lights(scene));
+        let (emitters, norm) = crate::render::emitters::build_emitters(scene, &g, bvh);
+        g.emitters = emitters;
+        g.emitter_norm = norm;
+        g
     }
 }
 

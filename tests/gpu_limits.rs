@@ -35,15 +35,17 @@ fn images_taller_than_one_binding_render_in_seamless_bands() {
     let prep = scene("cylinder.toml");
     let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
-    let (whole, one) = render(&ctx, &buffers, &frame, buffers.key, &|_, _| {}).unwrap();
+    let (whole, one) =
+        render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
     // Room for 37 rows per output binding: the image needs several bands, none tile-aligned.
     ctx.limits.max_storage_buffer_binding_size = frame.width as u64 * 16 * 37;
-    let (banded, many) = render(&ctx, &buffers, &frame, buffers.key, &|_, _| {}).unwrap();
+    let (banded, many) =
+        render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
     assert!(many.dispatches > one.dispatches, "{} vs {} dispatches", many.dispatches, one.dispatches);
     assert_eq!(whole, banded, "bands must join into the same image");
     // One row that does not fit is a clear error, not a crash.
     ctx.limits.max_storage_buffer_binding_size = 64;
-    let err = render(&ctx, &buffers, &frame, buffers.key, &|_, _| {}).unwrap_err();
+    let err = render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap_err();
     assert!(matches!(err, GpuError::TooLarge { .. }), "{err}");
 }
 

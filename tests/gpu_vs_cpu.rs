@@ -128,9 +128,10 @@ fn gpu_images_match_cpu_on_every_shipped_scene() {
     for path in shipped_scenes() {
         let prep = Prepared::new(Scene::load(&path).unwrap());
         let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
-        let want = cpu::render(&prep, &frame, &|_| {});
+        let want = cpu::render(&prep, &frame, strahl::scene::RenderMode::Whitted, &|_| {});
         let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
-        let (got, _) = render(&ctx, &buffers, &frame, buffers.key, &|_, _| {}).unwrap();
+        let (got, _) =
+            render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
         assert_eq!(got.non_finite_count(), 0, "{}", path.display());
         let a = strahl::metrics::agreement(&want, &got, 1);
         eprintln!("{}: {:?}", path.display(), a);
@@ -151,8 +152,10 @@ fn all_features_shader_agrees_with_the_specialised_one() {
         let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
         let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
         assert_ne!(buffers.key, FeatureKey::ALL);
-        let (a, _) = render(&ctx, &buffers, &frame, buffers.key, &|_, _| {}).unwrap();
-        let (b, _) = render(&ctx, &buffers, &frame, FeatureKey::ALL, &|_, _| {}).unwrap();
+        let (a, _) =
+            render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
+        let (b, _) =
+            render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, FeatureKey::ALL, &|_, _| {}).unwrap();
         let agree = strahl::metrics::agreement(&a, &b, 1);
         assert!(agree.within_tolerance >= 0.999, "{name}: {agree:?}");
     }

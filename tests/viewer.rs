@@ -100,7 +100,8 @@ fn the_window_shows_the_rendered_scene_beside_the_side_panel() {
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
     let mut frame = prep.frame(w, h);
     frame.spp = samples;
-    let (reference, _) = render(&ctx, &buffers, &frame, buffers.key, &|_, _| {}).unwrap();
+    let (reference, _) =
+        render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
     let reference = reference.to_srgb8();
     let mut close = 0usize;
     for py in 0..h {

@@ -2,15 +2,21 @@
 
 use crate::gpu_types::GpuFrame;
 use crate::image::Image;
-use crate::render::Prepared;
-use crate::render::shade::{ShadeInputs, shade_pixel};
+use crate::render::shade::ShadeInputs;
+use crate::render::{Prepared, path, shade};
+use crate::scene::RenderMode;
 use rayon::prelude::*;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Renders the image described by `frame` (its `width`, `height`, `spp`, `sample_base`).
-/// `progress` is called with the number of rows finished so far, from worker threads.
-pub fn render(prep: &Prepared, frame: &GpuFrame, progress: &(dyn Fn(u64) + Sync)) -> Image {
+/// Renders the image described by `frame` (its `width`, `height`, `spp`, `sample_base`) in
+/// `mode`. `progress` is called with the number of rows finished so far, from worker threads.
+pub fn render(prep: &Prepared, frame: &GpuFrame, mode: RenderMode, progress: &(dyn Fn(u64) + Sync)) -> Image {
     let inputs = ShadeInputs { prims: &prep.prims, bvh: &prep.bvh, gpu: &prep.gpu, frame };
+    let shade_pixel = match mode {
+        RenderMode::Whitted => shade::shade_pixel,
+        RenderMode::Path => path::shade_pixel,
+    };
     let mut img = Image::new(frame.width, frame.height);
     let done = AtomicU64::new(0);
     img.pixels.par_chunks_mut(frame.width as usize).enumerate().for_each(|(y, row)| {
@@ -20,6 +26,54 @@ pub fn render(prep: &Prepared, frame: &GpuFrame, progress: &(dyn Fn(u64) + Sync)
         progress(done.fetch_add(1, Ordering::Relaxed) + 1);
     });
     img
+}
+
+/// Progressive path tracing on the CPU: per-pixel sums that grow by whole sample passes, in
+/// the order the GPU's passes add them.
+pub struct Progressive {
+    prep: Arc<Prepared>,
+    frame: GpuFrame,
+    sums: Vec<[f32; 3]>,
+    samples: u32,
+}
+
+impl Progressive {
+    /// An empty accumulation for `frame` (whole image; its `spp` and `sample_base` are ignored).
+    pub fn new(prep: Arc<Prepared>, frame: GpuFrame) -> Self {
+        let n = frame.width as usize * frame.height as usize;
+        Self { prep, frame, sums: vec![[0.0; 3]; n], samples: 0 }
+    }
+
+    /// Adds samples `samples() .. samples() + n` to every pixel.
+    pub fn add_samples(&mut self, n: u32) {
+        let frame = GpuFrame { spp: 1, ..self.frame };
+        let prep = &self.prep;
+        let inputs = ShadeInputs { prims: &prep.prims, bvh: &prep.bvh, gpu: &prep.gpu, frame: &frame };
+        let first = self.samples;
+        self.sums.par_chunks_mut(frame.width as usize).enumerate().for_each(|(y, row)| {
+            for (x, px) in row.iter_mut().enumerate() {
+                for s in first..first + n {
+                    let c = path::sample_pixel(&inputs, x as u32, y as u32, s);
+                    *px = [px[0] + c.x, px[1] + c.y, px[2] + c.z];
+                }
+            }
+        });
+        self.samples += n;
+    }
+
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// The mean of the samples so far (black before the first).
+    pub fn image(&self) -> Image {
+        let mut img = Image::new(self.frame.width, self.frame.height);
+        let k = 1.0 / self.samples.max(1) as f32;
+        for (p, s) in img.pixels.iter_mut().zip(&self.sums) {
+            *p = s.map(|c| c * k);
+        }
+        img
+    }
 }
 
 /// Answers ray queries in precision `R` (f32: the GPU's mirror; f64: the oracle): the

@@ -60,7 +60,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
 fn first_dispatch(ctx: &GpuContext, buffers: &SceneBuffers, prep: &Prepared, key: FeatureKey) -> Result<Duration> {
     let start = Instant::now();
     let tiny = prep.frame(8, 8);
-    render(ctx, buffers, &tiny, key, &|_, _| {})?;
+    render(ctx, buffers, &tiny, strahl::scene::RenderMode::Whitted, key, &|_, _| {})?;
     Ok(start.elapsed())
 }
 
@@ -109,7 +109,7 @@ fn bench(a: BenchArgs) -> Result<()> {
             first_dispatch(&ctx, &buffers, &prep, key)?;
             let mut times = Vec::new();
             for i in 0..=a.frames {
-                let (_, stats) = render(&ctx, &buffers, &frame, key, &|_, _| {})?;
+                let (_, stats) = render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, key, &|_, _| {})?;
                 if i > 0 {
                     times.push(stats.gpu_time.unwrap_or(stats.wall));
                 }
@@ -126,7 +126,7 @@ fn bench(a: BenchArgs) -> Result<()> {
             });
         }
         let start = Instant::now();
-        strahl::backend::cpu::render(&prep, &frame, &|_| {});
+        strahl::backend::cpu::render(&prep, &frame, strahl::scene::RenderMode::Whitted, &|_| {});
         let cpu = start.elapsed();
         rows.push(Row {
             scene: name.clone(),

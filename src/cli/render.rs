@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 use strahl::backend::gpu::{self, GpuContext, SceneBuffers};
 use strahl::render::Prepared;
-use strahl::scene::Scene;
+use strahl::scene::{RenderMode, Scene};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -28,6 +28,33 @@ pub struct RenderArgs {
     /// Samples per pixel (default: the scene's [render] spp).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub spp: Option<u32>,
+    /// Light transport (default: the scene's [render] mode, else whitted).
+    #[arg(long, value_enum)]
+    pub mode: Option<ModeChoice>,
+    /// Longest path or reflection chain (default: the scene's [render] max_depth).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=64))]
+    pub max_depth: Option<u32>,
+    /// Seed of the path tracer's random numbers (renders with different seeds are independent).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u32,
+}
+
+/// `--mode`: how light transport is computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ModeChoice {
+    /// Whitted ray tracing: point/directional lights, hard shadows, perfect mirrors and glass.
+    Whitted,
+    /// Monte Carlo path tracing: area lights, next-event estimation with MIS, soft shadows.
+    Path,
+}
+
+impl From<ModeChoice> for RenderMode {
+    fn from(m: ModeChoice) -> Self {
+        match m {
+            ModeChoice::Whitted => RenderMode::Whitted,
+            ModeChoice::Path => RenderMode::Path,
+        }
+    }
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
@@ -36,6 +63,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(spp) = a.spp {
         scene.render.spp = spp;
     }
+    if let Some(mode) = a.mode {
+        scene.render.mode = mode.into();
+    }
+    if let Some(d) = a.max_depth {
+        scene.render.max_depth = d;
+    }
+    let mode = scene.render.mode;
     let width = a.width.unwrap_or(scene.image.width);
     let height = a.height.unwrap_or(scene.image.height);
     if width as u64 * height as u64 > strahl::scene::file::MAX_IMAGE_PIXELS {
@@ -50,7 +84,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
         prep.bvh.depth,
         prep.build_time.as_secs_f64()
     );
-    let frame = prep.frame(width, height);
+    let mut frame = prep.frame(width, height);
+    frame.seed = a.seed;
     let samples = width as f64 * height as f64 * frame.spp as f64;
     let gpu = match a.backend {
         Some(BackendChoice::Cpu) => None,
@@ -67,12 +102,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
         None => {
             let bar = progress_bar(height as u64, "cpu");
             let start = Instant::now();
-            let img = strahl::backend::cpu::render(&prep, &frame, &|rows| bar.set_position(rows));
+            let img = strahl::backend::cpu::render(&prep, &frame, mode, &|rows| bar.set_position(rows));
             bar.finish_and_clear();
             let secs = start.elapsed().as_secs_f64();
             println!(
-                "rendered {width}x{height} at {} spp on the cpu ({} threads) in {secs:.3} s: {:.2} M primary rays/s",
+                "rendered {width}x{height} at {} spp ({}) on the cpu ({} threads) in {secs:.3} s: {:.2} M samples/s",
                 frame.spp,
+                mode.name(),
                 rayon::current_num_threads(),
                 samples / secs / 1e6
             );
@@ -81,15 +117,16 @@ pub fn run(a: RenderArgs) -> Result<()> {
         Some(ctx) => {
             let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
             let bar = progress_bar(1, "gpu");
-            let (img, stats) = gpu::render::render(&ctx, &buffers, &frame, buffers.key, &|done, total| {
+            let (img, stats) = gpu::render::render(&ctx, &buffers, &frame, mode, buffers.key, &|done, total| {
                 bar.set_length(total);
                 bar.set_position(done)
             })?;
             bar.finish_and_clear();
             let secs = stats.wall.as_secs_f64();
             println!(
-                "rendered {width}x{height} at {} spp on {} in {secs:.3} s ({} dispatches, shader {} compiled in {:.3} s): {:.2} M primary rays/s",
+                "rendered {width}x{height} at {} spp ({}) on {} in {secs:.3} s ({} dispatches, shader {} compiled in {:.3} s): {:.2} M samples/s",
                 frame.spp,
+                mode.name(),
                 ctx.adapter_name(),
                 stats.dispatches,
                 stats.key.label(),
@@ -98,7 +135,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             );
             if let Some(g) = stats.gpu_time {
                 println!(
-                    "gpu time from timestamp queries: {:.3} ms, {:.2} M primary rays/s",
+                    "gpu time from timestamp queries: {:.3} ms, {:.2} M samples/s",
                     g.as_secs_f64() * 1e3,
                     samples / g.as_secs_f64() / 1e6
                 );

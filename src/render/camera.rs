@@ -37,6 +37,12 @@ pub fn sample_offset(s: u32) -> (f32, f32) {
 #[inline]
 pub fn primary_ray(f: &GpuFrame, x: u32, y: u32, s: u32) -> Ray<f32> {
     let (ox, oy) = sample_offset(s);
+    ray_through(f, x, y, ox, oy)
+}
+
+/// The ray through sub-pixel position (ox, oy) ∈ [0, 1)² of pixel (x, y).
+#[inline]
+pub fn ray_through(f: &GpuFrame, x: u32, y: u32, ox: f32, oy: f32) -> Ray<f32> {
     let u = 2.0 * (x as f32 + ox) / f.width as f32 - 1.0;
     let v = 1.0 - 2.0 * (y as f32 + oy) / f.height as f32;
     let forward = V3::from_array(f.forward);

@@ -1,8 +1,14 @@
 //! Image formation shared by both backends, as stages named like the shaders:
-//! [`camera`] (`raygen.wgsl`), [`spawn`] (`spawn.wgsl`), [`shade`] (`shade.wgsl`).
+//! [`camera`] (`raygen.wgsl`), [`spawn`] (`spawn.wgsl`), [`shade`] (`shade.wgsl`, Whitted),
+//! and for path tracing [`sampler`] (`sampler.wgsl`), [`bsdf`] (`bsdf.wgsl`), [`emitters`]
+//! (`emitters.wgsl`) and [`path`] (`path.wgsl`).
 //! The CPU backend runs these functions; the GPU runs their WGSL twins.
 
+pub mod bsdf;
 pub mod camera;
+pub mod emitters;
+pub mod path;
+pub mod sampler;
 pub mod shade;
 pub mod spawn;
 
@@ -41,6 +47,9 @@ impl Prepared {
         f.ambient = s.ambient.map(|c| c as f32);
         f.num_planes = self.gpu.planes.len() as u32;
         f.num_lights = self.gpu.lights.len() as u32;
+        f.num_emitters = self.gpu.emitters.len() as u32;
+        f.emitter_norm = self.gpu.emitter_norm;
+        f.rr_depth = path::RR_DEPTH;
         f.tile_size = [width, height];
         f.out_pitch = width;
         f

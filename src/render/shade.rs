@@ -55,7 +55,8 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
 }
 
 /// Transmittance from the hit at `t` along `from` towards a light `dist` away: 0 if an opaque
-/// surface blocks it, the product of dielectric colours crossed otherwise.
+/// surface blocks it, the product of dielectric colours crossed otherwise (emissive surfaces
+/// let it through).
 fn shadow_transmittance(inp: &ShadeInputs, from: &Ray<f32>, t: f32, n: V3<f32>, l: V3<f32>, dist: f32) -> V3<f32> {
     let mut origin = spawn_origin(from, t, n);
     let mut remaining = dist;
@@ -66,10 +67,12 @@ fn shadow_transmittance(inp: &ShadeInputs, from: &Ray<f32>, t: f32, n: V3<f32>, 
             return tr;
         };
         let m = &inp.gpu.materials[hit.tag.material as usize];
-        if m.kind != MaterialKind::Dielectric as u32 {
+        // Emissive surfaces are lights (their stand-ins sit inside them): they cast no shadow.
+        if m.kind == MaterialKind::Dielectric as u32 {
+            tr = tr.mul_elem(V3::from_array(m.color));
+        } else if m.kind != MaterialKind::Emissive as u32 {
             return V3::zero();
         }
-        tr = tr.mul_elem(V3::from_array(m.color));
         // Continue from the far side of the surface just crossed.
         let side = if l.dot(hit.normal) < 0.0 { -hit.normal } else { hit.normal };
         origin = spawn_origin(&ray, hit.t, side);

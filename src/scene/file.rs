@@ -9,7 +9,9 @@
 
 use super::mesh::{self, Transform};
 use super::polygon;
-use super::{Camera, Geometry, ImageSize, Light, Material, MaterialKind, Object, RenderSettings, Scene, SceneError};
+use super::{
+    Camera, Geometry, ImageSize, Light, Material, MaterialKind, Object, RenderMode, RenderSettings, Scene, SceneError,
+};
 use crate::geometry::{Cylinder, Plane, Sphere, Triangle};
 use crate::math::V3;
 use serde::Deserialize;
@@ -93,6 +95,7 @@ struct ImageDef {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RenderDef {
+    mode: Option<Spanned<String>>,
     max_depth: Option<Spanned<i64>>,
     spp: Option<Spanned<i64>>,
     background: Option<SVec>,
@@ -108,6 +111,8 @@ struct MaterialDef {
     color: Option<SVec>,
     ior: Option<Spanned<f64>>,
     radiance: Option<SVec>,
+    roughness: Option<Spanned<f64>>,
+    two_sided: Option<Spanned<bool>>,
 }
 
 /// Every key any object type has; which belong to which type is checked in `object`.
@@ -566,6 +571,19 @@ impl Cx<'_> {
 
     fn render(&self, r: &RenderDef) -> Res<RenderSettings> {
         let mut s = RenderSettings::default();
+        if let Some(v) = &r.mode {
+            let name = v.get_ref().as_str();
+            s.mode = RenderMode::ALL.into_iter().find(|m| m.name() == name).ok_or_else(|| {
+                self.at(
+                    v.span(),
+                    "render.mode",
+                    format!(
+                        "unknown render mode \"{name}\"; known: {}",
+                        known_list(RenderMode::ALL.iter().map(|m| m.name()))
+                    ),
+                )
+            })?;
+        }
         if let Some(v) = &r.max_depth {
             s.max_depth = self.int_in(v, "render.max_depth", 0, MAX_DEPTH)? as u32;
         }
@@ -611,11 +629,24 @@ impl Cx<'_> {
         {
             return Err(not_a_field("radiance", r.span()));
         }
-        let (default_color, max) = match kind {
-            MaterialKind::Dielectric => ([1.0; 3], Some(1.0)),
-            MaterialKind::Emissive => ([0.7; 3], None),
-            _ => ([0.7; 3], Some(1.0)),
+        if kind != MaterialKind::Emissive
+            && let Some(r) = &d.two_sided
+        {
+            return Err(not_a_field("two_sided", r.span()));
+        }
+        if kind != MaterialKind::Mirror
+            && let Some(r) = &d.roughness
+        {
+            return Err(not_a_field("roughness", r.span()));
+        }
+        // An emissive surface reflects like a diffuse one of albedo `color`: black by default,
+        // a pure light.
+        let default_color = match kind {
+            MaterialKind::Dielectric => [1.0; 3],
+            MaterialKind::Emissive => [0.0; 3],
+            _ => [0.7; 3],
         };
+        let max = Some(1.0);
         let color = match &d.color {
             Some(c) => self.rgb(c, &format!("{field}.color"), max)?,
             None => default_color,
@@ -645,7 +676,19 @@ impl Cx<'_> {
             };
             radiance = self.rgb(r, &format!("{field}.radiance"), None)?;
         }
-        Ok(Material { name: name.clone(), kind, color, ior, radiance })
+        let mut roughness = 0.0;
+        if let Some(v) = &d.roughness {
+            roughness = self.number(v, &format!("{field}.roughness"))?;
+            if !(0.0..=1.0).contains(&roughness) {
+                return Err(self.at(
+                    v.span(),
+                    format!("{field}.roughness"),
+                    format!("must be in [0, 1] (GGX alpha), got {roughness}"),
+                ));
+            }
+        }
+        let two_sided = d.two_sided.as_ref().is_some_and(|v| *v.get_ref());
+        Ok(Material { name: name.clone(), kind, color, ior, radiance, roughness, two_sided })
     }
 
     fn light(&self, l: &Spanned<LightDef>, field: &str) -> Res<Light> {

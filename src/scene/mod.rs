@@ -30,22 +30,52 @@ pub struct ImageSize {
     pub height: u32,
 }
 
+/// How light transport is computed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RenderMode {
+    /// Whitted ray tracing: point/directional lights with hard shadows, perfect mirrors and
+    /// refraction. Deterministic; emissive primitives light the scene as point-light stand-ins.
+    #[default]
+    Whitted,
+    /// Monte Carlo path tracing: area lights, next-event estimation with MIS, progressive.
+    Path,
+}
+
+impl RenderMode {
+    pub const ALL: [RenderMode; 2] = [Self::Whitted, Self::Path];
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Whitted => "whitted",
+            Self::Path => "path",
+        }
+    }
+}
+
 /// How images are formed: settings under `[render]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
-    /// Longest chain of reflections/refractions followed (Whitted), ≥ 0.
+    pub mode: RenderMode,
+    /// Whitted: longest chain of reflections/refractions followed. Path: longest path in
+    /// segments from the camera to a light, as Mitsuba counts it (1: emitters seen directly,
+    /// 2: direct light only).
     pub max_depth: u32,
     /// Samples per pixel.
     pub spp: u32,
     /// Radiance of rays that leave the scene.
     pub background: [f64; 3],
-    /// Constant light added to every diffuse surface, so shadows are not black.
+    /// Constant light added to every diffuse surface, so shadows are not black (Whitted only).
     pub ambient: [f64; 3],
 }
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        Self { max_depth: 5, spp: 1, background: [0.05, 0.05, 0.08], ambient: [0.03, 0.03, 0.03] }
+        Self {
+            mode: RenderMode::Whitted,
+            max_depth: 5,
+            spp: 1,
+            background: [0.05, 0.05, 0.08],
+            ambient: [0.03, 0.03, 0.03],
+        }
     }
 }
 
@@ -74,12 +104,18 @@ impl MaterialKind {
 pub struct Material {
     pub name: String,
     pub kind: MaterialKind,
-    /// Albedo (diffuse), reflectance (mirror) or transmission tint (dielectric).
+    /// Albedo (diffuse, and the reflecting part of an emissive surface), reflectance at normal
+    /// incidence (mirror) or transmission tint (dielectric).
     pub color: [f64; 3],
     /// Index of refraction (dielectric).
     pub ior: f64,
     /// Emitted radiance (emissive).
     pub radiance: [f64; 3],
+    /// GGX α of a mirror (0: perfectly smooth); path mode only, Whitted treats every mirror
+    /// as smooth.
+    pub roughness: f64,
+    /// An emissive surface emits from both faces (else from its front face only).
+    pub two_sided: bool,
 }
 
 impl Material {
@@ -91,6 +127,8 @@ impl Material {
             color: [0.7, 0.7, 0.7],
             ior: 1.0,
             radiance: [0.0; 3],
+            roughness: 0.0,
+            two_sided: false,
         }
     }
 }

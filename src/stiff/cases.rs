@@ -8,7 +8,7 @@ use crate::gpu_types::GpuScene;
 use crate::math::{Ray, V3};
 use crate::primitives::{PrimKind, PrimRef, Primitives, Tag, Tagged};
 use crate::query::RayQuery;
-use crate::scene::{Camera, ImageSize, Material, RenderSettings, Scene};
+use crate::scene::{Camera, ImageSize, Material, RenderMode, RenderSettings, Scene};
 use std::time::Instant;
 
 /// Where and how much to run.
@@ -773,17 +773,17 @@ pub fn far_from_origin(opt: &Options) -> Result<Vec<Row>, GpuError> {
     let far = crate::render::Prepared::new(scene_at(1e5));
     let frame_near = near.frame(160, 120);
     let frame_far = far.frame(160, 120);
-    let reference = crate::backend::cpu::render(&near, &frame_near, &|_| {});
+    let reference = crate::backend::cpu::render(&near, &frame_near, RenderMode::Whitted, &|_| {});
     let bg = near.scene.render.background.map(|c| c as f32);
     let mut rows = Vec::new();
     for variant in opt.variants() {
         let start = Instant::now();
         let img = match variant {
-            Variant::Cpu => crate::backend::cpu::render(&far, &frame_far, &|_| {}),
+            Variant::Cpu => crate::backend::cpu::render(&far, &frame_far, RenderMode::Whitted, &|_| {}),
             Variant::Gpu => {
                 let ctx = opt.gpu.expect("gpu");
                 let b = SceneBuffers::upload(ctx, &far.gpu)?;
-                crate::backend::gpu::render::render(ctx, &b, &frame_far, b.key, &|_, _| {})?.0
+                crate::backend::gpu::render::render(ctx, &b, &frame_far, RenderMode::Whitted, b.key, &|_, _| {})?.0
             }
             Variant::Textbook => continue,
         };

@@ -614,7 +614,7 @@ impl Viewer {
         let frame = GpuFrame { spp: acc.samples, sample_base: 0, flags: 0, ..*frame };
         self.cpu_job = Some(Job::spawn(move || {
             let start = Instant::now();
-            let cpu = crate::backend::cpu::render(&prep, &frame, &|_| {});
+            let cpu = crate::backend::cpu::render(&prep, &frame, crate::scene::RenderMode::Whitted, &|_| {});
             let cpu_time = start.elapsed();
             let agreement = crate::metrics::agreement(&cpu, &gpu_image, 1);
             let (a, b) = (cpu.to_srgb8(), gpu_image.to_srgb8());

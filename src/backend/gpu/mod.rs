@@ -109,9 +109,9 @@ impl GpuContext {
         adapter_info: wgpu::AdapterInfo,
     ) -> Result<Self, GpuError> {
         let limits = device.limits();
-        if limits.max_storage_buffers_per_shader_stage < 11 {
+        if limits.max_storage_buffers_per_shader_stage < 12 {
             return Err(GpuError::Device(format!(
-                "strahl needs 11 storage buffers per shader stage, this device offers {}",
+                "strahl needs 12 storage buffers per shader stage, this device offers {}",
                 limits.max_storage_buffers_per_shader_stage
             )));
         }
@@ -127,7 +127,7 @@ impl GpuContext {
             count: None,
         };
         let mut scene_entries = vec![uniform];
-        scene_entries.extend((1..=8).map(|b| storage_entry(b, true)));
+        scene_entries.extend((1..=9).map(|b| storage_entry(b, true)));
         let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),
             entries: &scene_entries,
@@ -178,7 +178,7 @@ impl GpuContext {
             source: wgpu::ShaderSource::Naga(std::borrow::Cow::Owned(module)),
         });
         let io_layout = match program {
-            Program::Render | Program::View => &self.render_layout,
+            Program::Render | Program::Path | Program::View => &self.render_layout,
             Program::Trace => &self.trace_layout,
         };
         let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -296,6 +296,7 @@ impl SceneBuffers {
             ctx.storage_buffer("primitive references", &g.prim_refs)?,
             ctx.storage_buffer("materials", &g.materials)?,
             ctx.storage_buffer("lights", &g.lights)?,
+            ctx.storage_buffer("emitters", &g.emitters)?,
         ];
         let frame = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),

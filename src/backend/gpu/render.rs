@@ -2,9 +2,11 @@
 //! into tiles of at most [`TILE`]×[`TILE`] pixels, one dispatch per tile and sample pass, so
 //! no dispatch runs for long.
 
-use super::{FeatureKey, GpuContext, GpuError, Program, SceneBuffers};
+use super::{CachedPipeline, FeatureKey, GpuContext, GpuError, Program, SceneBuffers};
 use crate::gpu_types::{FRAME_ACCUMULATE, GpuFrame};
 use crate::image::Image;
+use crate::scene::RenderMode;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Tile side in pixels.
@@ -25,19 +27,29 @@ pub struct RenderStats {
     pub key: FeatureKey,
 }
 
-/// Renders `frame` (whole image; `spp` samples, one pass per sample) with the pipeline for
-/// `key`, which must contain the scene's features ([`SceneBuffers::runs_with`]).
+/// The program and entry point that render in `mode`.
+pub fn program_for(mode: RenderMode) -> (Program, &'static str) {
+    match mode {
+        RenderMode::Whitted => (Program::Render, "render"),
+        RenderMode::Path => (Program::Path, "render_path"),
+    }
+}
+
+/// Renders `frame` (whole image; `spp` samples, one pass per sample) in `mode` with the
+/// pipeline for `key`, which must contain the scene's features ([`SceneBuffers::runs_with`]).
 /// `progress(done, total)` is called after each sample pass of each band.
 pub fn render(
     ctx: &GpuContext,
     scene: &SceneBuffers,
     frame: &GpuFrame,
+    mode: RenderMode,
     key: FeatureKey,
     progress: &dyn Fn(u64, u64),
 ) -> Result<(Image, RenderStats), GpuError> {
     assert!(scene.runs_with(key), "variant {} cannot render a scene needing {}", key.label(), scene.key.label());
-    let was_cached = ctx.pipelines.lock().expect("cache").contains_key(&(Program::Render, key, "render"));
-    let pipe = ctx.pipeline(Program::Render, key, "render")?;
+    let (program, entry) = program_for(mode);
+    let was_cached = ctx.cached_pipeline(program, key, entry).is_some();
+    let pipe = ctx.pipeline(program, key, entry)?;
     let start = Instant::now();
     let (w, h) = (frame.width, frame.height);
     let row_bytes = w as u64 * PIXEL_BYTES;
@@ -108,6 +120,91 @@ pub fn render(
     stats.gpu_time = timer.map(|_| Duration::from_nanos(gpu_ns as u64));
     stats.compile_time = if was_cached { Duration::ZERO } else { pipe.compile_time };
     Ok((img, stats))
+}
+
+/// Progressive path tracing on the GPU: the whole image's sums live in one output buffer that
+/// each sample pass adds to, one dispatch per tile, so the image can be read at any time.
+pub struct Progressive {
+    ctx: Arc<GpuContext>,
+    scene: SceneBuffers,
+    frame: GpuFrame,
+    pipeline: Arc<CachedPipeline>,
+    output: wgpu::Buffer,
+    out_group: wgpu::BindGroup,
+    samples: u32,
+}
+
+impl Progressive {
+    /// Compiles (or takes from the cache) the path pipeline for the scene's key and allocates
+    /// the accumulation buffer for `frame` (whole image; its `spp` and `sample_base` are
+    /// ignored). Fails, before allocating, when the image does not fit one storage binding.
+    pub fn new(ctx: Arc<GpuContext>, scene: SceneBuffers, frame: GpuFrame) -> Result<Self, GpuError> {
+        let bytes = frame.width as u64 * frame.height as u64 * PIXEL_BYTES;
+        ctx.check_binding_size(&format!("the {}x{} accumulation buffer", frame.width, frame.height), bytes)?;
+        let (program, entry) = program_for(RenderMode::Path);
+        let pipeline = ctx.pipeline(program, scene.key, entry)?;
+        let output = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("accumulation"),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let out_group = ctx.output_bind_group(&output);
+        Ok(Self { ctx, scene, frame, pipeline, output, out_group, samples: 0 })
+    }
+
+    /// The pipeline's compile time (zero when it came from the cache).
+    pub fn compile_time(&self) -> Duration {
+        self.pipeline.compile_time
+    }
+
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// Adds samples `samples() .. samples() + n` to every pixel and waits for the GPU.
+    pub fn add_samples(&mut self, n: u32) -> Result<(), GpuError> {
+        let band = Band::whole(self.frame.width, self.frame.height, TILE);
+        for k in 0..n {
+            let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+            let frame = GpuFrame { sample_base: self.samples + k, ..self.frame };
+            record_pass(
+                &self.ctx,
+                &mut enc,
+                &self.scene,
+                &self.pipeline.pipeline,
+                &self.out_group,
+                &frame,
+                &band,
+                0..band.tile_count(),
+                self.samples + k > 0,
+                None,
+            );
+            self.ctx.queue.submit([enc.finish()]);
+        }
+        self.ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Wgpu(e.to_string()))?;
+        self.samples += n;
+        Ok(())
+    }
+
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// The mean of the samples so far (black before the first).
+    pub fn image(&self) -> Result<Image, GpuError> {
+        let mut img = Image::new(self.frame.width, self.frame.height);
+        if self.samples == 0 {
+            return Ok(img);
+        }
+        let bytes = self.ctx.read_buffer(&self.output, self.output.size())?;
+        let px: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+        let k = 1.0 / self.samples as f32;
+        for (p, s) in img.pixels.iter_mut().zip(px) {
+            *p = [s[0] * k, s[1] * k, s[2] * k];
+        }
+        Ok(img)
+    }
 }
 
 /// The rows of the image one output buffer holds, cut into tiles of `tile`×`tile` pixels

@@ -23,6 +23,9 @@ pub const MODULES: &[(&str, &str)] = &[
     ("shaders/spawn.wgsl", include_str!("../../../shaders/spawn.wgsl")),
     ("shaders/raygen.wgsl", include_str!("../../../shaders/raygen.wgsl")),
     ("shaders/shade.wgsl", include_str!("../../../shaders/shade.wgsl")),
+    ("shaders/sampler.wgsl", include_str!("../../../shaders/sampler.wgsl")),
+    ("shaders/bsdf.wgsl", include_str!("../../../shaders/bsdf.wgsl")),
+    ("shaders/emitters.wgsl", include_str!("../../../shaders/emitters.wgsl")),
 ];
 
 /// A top-level shader and its entry points.
@@ -30,6 +33,8 @@ pub const MODULES: &[(&str, &str)] = &[
 pub enum Program {
     /// `render.wgsl`: Whitted image, one invocation per pixel.
     Render,
+    /// `path.wgsl`: one path-traced sample per pixel (progressive passes).
+    Path,
     /// `trace.wgsl`: ray queries.
     Trace,
     /// `view.wgsl`: the viewer's debug images (normals, depth, BVH cost) of primary rays;
@@ -41,6 +46,7 @@ impl Program {
     pub fn source(self) -> (&'static str, &'static str) {
         match self {
             Program::Render => ("shaders/render.wgsl", include_str!("../../../shaders/render.wgsl")),
+            Program::Path => ("shaders/path.wgsl", include_str!("../../../shaders/path.wgsl")),
             Program::Trace => ("shaders/trace.wgsl", include_str!("../../../shaders/trace.wgsl")),
             Program::View => ("shaders/view.wgsl", include_str!("../../../shaders/view.wgsl")),
         }
@@ -112,7 +118,7 @@ impl FeatureKey {
     /// The key as the program sees it: the trace and view programs ignore shading flags.
     pub fn for_program(self, p: Program) -> FeatureKey {
         match p {
-            Program::Render => self,
+            Program::Render | Program::Path => self,
             Program::Trace | Program::View => FeatureKey(self.0 & Self::GEOMETRY),
         }
     }
@@ -124,6 +130,9 @@ impl FeatureKey {
             .collect();
         if self.has(Self::POINT_LIGHTS | Self::DIRECTIONAL_LIGHTS) {
             defs.insert("LIGHTS".into(), ShaderDefValue::Bool(true));
+        }
+        if self.has(Self::DIELECTRIC | Self::EMISSIVE) {
+            defs.insert("SHADOW_CROSSING".into(), ShaderDefValue::Bool(true));
         }
         defs
     }
@@ -208,9 +217,9 @@ mod tests {
             .into_par_iter()
             .flat_map_iter(|bits| {
                 let key = FeatureKey(bits);
-                [Program::Render, Program::Trace, Program::View]
+                [Program::Render, Program::Path, Program::Trace, Program::View]
                     .into_iter()
-                    .filter(move |&p| p == Program::Render || key.for_program(p) == key)
+                    .filter(move |&p| key.for_program(p) == key)
                     .filter_map(move |p| match compose(p, key) {
                         Ok(m) => validate(p, key, &m).err().map(|e| e.to_string()),
                         Err(e) => Some(format!("{}: {e}", key.label())),
@@ -288,7 +297,11 @@ mod tests {
                     sample_base,
                     out_pitch,
                     out_first_row,
-                    flags
+                    flags,
+                    num_emitters,
+                    emitter_norm,
+                    rr_depth,
+                    seed
                 ]
             ),
             layout!("Sphere", GpuSphere, [center, radius, object, prim, material]),
@@ -296,14 +309,18 @@ mod tests {
             layout!("Plane", GpuPlane, [point, object, normal, material]),
             layout!("Triangle", GpuTriangle, [va, object, vb, prim, vc, material]),
             layout!("BvhNode", BvhNode, [bmin, left_or_first, bmax, count]),
-            layout!("Material", GpuMaterial, [color, kind, radiance, ior]),
-            layout!("Light", GpuLight, [vector, kind, intensity]),
+            layout!("Material", GpuMaterial, [color, kind, radiance, ior, roughness, flags]),
+            layout!("Light", GpuLight, [vector, kind, intensity, flags]),
+            layout!("Emitter", GpuEmitter, [prim, kind, cdf, pdf]),
             layout!("QueryRay", GpuQueryRay, [origin, tmin, dir, tmax]),
             layout!("QueryHit", GpuQueryHit, [normal, t, object, prim, prim_ref, flags]),
         ];
-        // Every struct is used by one of the two programs in its all-features variant.
-        let modules =
-            [compose(Program::Render, FeatureKey::ALL).unwrap(), compose(Program::Trace, FeatureKey::ALL).unwrap()];
+        // Every struct is used by one of these programs in its all-features variant.
+        let modules = [
+            compose(Program::Render, FeatureKey::ALL).unwrap(),
+            compose(Program::Path, FeatureKey::ALL).unwrap(),
+            compose(Program::Trace, FeatureKey::ALL).unwrap(),
+        ];
         for (name, size, fields) in expected {
             let found = modules.iter().find_map(|m| {
                 let mut layouter = naga::proc::Layouter::default();

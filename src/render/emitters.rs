@@ -1,0 +1,237 @@
+//! Light sources of the path tracer (`emitters.wgsl` is the twin of the sampling half): which
+//! emitters exist, how one is chosen, where on it a point is drawn, and the density of that
+//! choice, which multiple importance sampling needs for paths that hit an emitter by chance.
+//!
+//! Emitters are chosen in proportion to their power (mean radiance × area for emissive
+//! triangles and spheres, mean intensity × 4π for point lights, mean irradiance × the scene's
+//! cross-section for directional lights), then a point is drawn uniformly on the chosen area.
+//! For an area emitter of radiance L the two steps give the area density
+//! (mean(L)·A/W)·(1/A) = mean(L)/W, the same for every triangle or sphere of that radiance:
+//! that is [`crate::gpu_types::GpuFrame::emitter_norm`] = 1/W.
+//!
+//! Emissive cylinders and planes are not sampled (a plane has no finite area): they light the
+//! scene through paths that hit them, with MIS weight 1.
+
+use crate::accel::Bvh;
+use crate::gpu_types::{
+    EMITTER_AREA, EMITTER_LIGHT, GpuEmitter, GpuFrame, GpuLight, GpuScene, LIGHT_POINT, LIGHT_STAND_IN,
+    MATERIAL_TWO_SIDED,
+};
+use crate::math::V3;
+use crate::primitives::{PrimKind, PrimRef};
+use crate::scene::{Geometry, MaterialKind, Scene};
+
+const PI: f64 = std::f64::consts::PI;
+
+fn mean(c: [f32; 3]) -> f32 {
+    (c[0] + c[1] + c[2]) / 3.0
+}
+
+/// Whitted mode has no area lights: each emissive object lights the scene as a point light
+/// at its centre whose intensity is its radiance times its (projected) area, the on-axis
+/// intensity of a Lambertian emitter. Shadow rays pass through emissive surfaces, so the
+/// object does not hide its own stand-in. Planes have no finite area and get none.
+pub fn stand_in_lights(scene: &Scene) -> Vec<GpuLight> {
+    let mut out = Vec::new();
+    for o in &scene.objects {
+        let m = &scene.materials[o.material as usize];
+        if m.kind != MaterialKind::Emissive || m.radiance.iter().all(|&c| c <= 0.0) {
+            continue;
+        }
+        let (centre, area) = match &o.geometry {
+            Geometry::Sphere(s) => (s.center, PI * s.radius * s.radius),
+            Geometry::Cylinder(c) => ((c.p1 + c.p2) * 0.5, 2.0 * c.radius * (c.p2 - c.p1).length()),
+            Geometry::Plane(_) => continue,
+            Geometry::Triangle(t) => area_centroid(std::slice::from_ref(t)),
+            Geometry::Polygon { triangles, .. } | Geometry::Mesh { triangles, .. } => area_centroid(triangles),
+        };
+        if area <= 0.0 {
+            continue;
+        }
+        out.push(GpuLight {
+            vector: centre.cast::<f32>().to_array(),
+            kind: LIGHT_POINT,
+            intensity: m.radiance.map(|c| (c * area) as f32),
+            flags: LIGHT_STAND_IN,
+        });
+    }
+    out
+}
+
+fn area_centroid(tris: &[crate::geometry::Triangle<f64>]) -> (V3<f64>, f64) {
+    let mut sum = V3::zero();
+    let mut area = 0.0;
+    for t in tris {
+        let a = 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length();
+        sum += (t.v[0] + t.v[1] + t.v[2]) * (a / 3.0);
+        area += a;
+    }
+    (if area > 0.0 { sum / area } else { V3::zero() }, area)
+}
+
+/// The emitter table of `g` (whose lights already hold any stand-ins) and 1 / Σ weights.
+pub fn build_emitters(_scene: &Scene, g: &GpuScene, bvh: &Bvh) -> (Vec<GpuEmitter>, f32) {
+    let emissive = |material: u32| {
+        let m = &g.materials[material as usize];
+        (m.kind == MaterialKind::Emissive as u32 && mean(m.radiance) > 0.0).then(|| mean(m.radiance) as f64)
+    };
+    let mut entries: Vec<(u32, u32, f64)> = Vec::new();
+    for (i, t) in g.triangles.iter().enumerate() {
+        if let Some(l) = emissive(t.material) {
+            let (a, b, c) =
+                (V3::from_array(t.va).to_f64(), V3::from_array(t.vb).to_f64(), V3::from_array(t.vc).to_f64());
+            let area = 0.5 * (b - a).cross(c - a).length();
+            if area > 0.0 {
+                entries.push((PrimRef::new(PrimKind::Triangle, i).0, EMITTER_AREA, l * area));
+            }
+        }
+    }
+    for (i, s) in g.spheres.iter().enumerate() {
+        if let Some(l) = emissive(s.material) {
+            let r = s.radius as f64;
+            entries.push((PrimRef::new(PrimKind::Sphere, i).0, EMITTER_AREA, l * 4.0 * PI * r * r));
+        }
+    }
+    // A directional light's power is what crosses the scene's bounding sphere.
+    let radius = bvh.nodes.first().map_or(1.0, |n| {
+        let ext = V3::from_array(n.bmax).to_f64() - V3::from_array(n.bmin).to_f64();
+        (0.5 * ext.length()).max(1e-3)
+    });
+    for (i, l) in g.lights.iter().enumerate() {
+        if l.flags & LIGHT_STAND_IN != 0 || mean(l.intensity) <= 0.0 {
+            continue;
+        }
+        let power = if l.kind == LIGHT_POINT { 4.0 * PI } else { PI * radius * radius };
+        entries.push((i as u32, EMITTER_LIGHT, mean(l.intensity) as f64 * power));
+    }
+    let total: f64 = entries.iter().map(|e| e.2).sum();
+    if entries.is_empty() || total <= 0.0 || !total.is_finite() {
+        return (Vec::new(), 0.0);
+    }
+    let mut cum = 0.0;
+    let n = entries.len();
+    let emitters = entries
+        .into_iter()
+        .enumerate()
+        .map(|(k, (prim, kind, w))| {
+            cum += w;
+            let cdf = if k + 1 == n { 1.0 } else { (cum / total) as f32 };
+            GpuEmitter { prim, kind, cdf, pdf: (w / total) as f32 }
+        })
+        .collect();
+    (emitters, (1.0 / total) as f32)
+}
+
+/// Index of the emitter `u` ∈ [0, 1) selects: the first whose cdf exceeds `u`.
+#[inline]
+pub fn select(emitters: &[GpuEmitter], u: f32) -> usize {
+    let (mut lo, mut hi) = (0usize, emitters.len() - 1);
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        if u < emitters[mid].cdf {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    lo
+}
+
+/// A light sample seen from a shading point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSample {
+    /// Unit direction towards the light.
+    pub dir: V3<f32>,
+    /// Distance to the sampled point (f32::MAX for directional lights).
+    pub dist: f32,
+    /// Radiance (area emitters) or irradiance at normal incidence (point, directional)
+    /// arriving, divided by `pdf`.
+    pub value: V3<f32>,
+    /// Solid-angle density of this direction (area emitters, selection included), or the
+    /// selection probability of a point/directional light.
+    pub pdf: f32,
+    /// A point or directional light: no other technique can find it (MIS weight 1).
+    pub delta: bool,
+}
+
+/// Draws a light sample for shading point `p` from three uniform numbers; None when the
+/// sampled point faces away or the scene has no emitters.
+pub fn sample(g: &GpuScene, frame: &GpuFrame, p: V3<f32>, u: [f32; 3]) -> Option<LightSample> {
+    if frame.num_emitters == 0 {
+        return None;
+    }
+    let e = &g.emitters[select(&g.emitters[..frame.num_emitters as usize], u[0])];
+    if e.kind == EMITTER_LIGHT {
+        let l = &g.lights[e.prim as usize];
+        let i = V3::from_array(l.intensity);
+        if l.kind == LIGHT_POINT {
+            let to = V3::from_array(l.vector) - p;
+            let d2 = to.dot(to);
+            let dist = d2.sqrt();
+            return Some(LightSample { dir: to / dist, dist, value: i / (d2 * e.pdf), pdf: e.pdf, delta: true });
+        }
+        let dir = -V3::from_array(l.vector);
+        return Some(LightSample { dir, dist: f32::MAX, value: i / e.pdf, pdf: e.pdf, delta: true });
+    }
+    let r = PrimRef(e.prim);
+    let (q, n, material) = match r.kind() {
+        PrimKind::Triangle => {
+            let t = &g.triangles[r.index()];
+            let (a, b, c) = (V3::from_array(t.va), V3::from_array(t.vb), V3::from_array(t.vc));
+            // Uniform on the triangle (Turk 1990 / pbrt-v4 A.5.5).
+            let su = u[1].sqrt();
+            let (b0, b1) = (1.0 - su, u[2] * su);
+            (a * b0 + b * b1 + c * (1.0 - b0 - b1), (b - a).cross(c - a).normalize(), t.material)
+        }
+        _ => {
+            let s = &g.spheres[r.index()];
+            let z = 1.0 - 2.0 * u[1];
+            let rad = (1.0 - z * z).max(0.0).sqrt();
+            let phi = 2.0 * std::f32::consts::PI * u[2];
+            let n = V3::new(rad * phi.cos(), rad * phi.sin(), z);
+            (V3::from_array(s.center) + n * s.radius, n, s.material)
+        }
+    };
+    let m = &g.materials[material as usize];
+    let to = q - p;
+    let d2 = to.dot(to);
+    let dist = d2.sqrt();
+    let dir = to / dist;
+    let cos_l = emitted_cos(m.flags, -dir.dot(n));
+    if cos_l <= 0.0 || d2 <= 0.0 {
+        return None;
+    }
+    let pdf = area_pdf(frame, m.radiance, d2, cos_l);
+    Some(LightSample { dir, dist, value: V3::from_array(m.radiance) / pdf, pdf, delta: false })
+}
+
+/// The cosine at the emitter that counts: `cos` for one-sided emitters (≤ 0 from behind),
+/// |cos| for two-sided ones.
+#[inline]
+pub fn emitted_cos(material_flags: u32, cos: f32) -> f32 {
+    if material_flags & MATERIAL_TWO_SIDED != 0 { cos.abs() } else { cos }
+}
+
+/// Solid-angle density with which [`sample`] picks a point at squared distance `d2` and
+/// emitter cosine `cos_l` on an area emitter of radiance `radiance`.
+#[inline]
+pub fn area_pdf(frame: &GpuFrame, radiance: [f32; 3], d2: f32, cos_l: f32) -> f32 {
+    mean(radiance) * frame.emitter_norm * d2 / cos_l
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn selection_inverts_the_cdf() {
+        let e = |cdf| GpuEmitter { cdf, ..Default::default() };
+        let table = [e(0.25), e(0.5), e(1.0)];
+        assert_eq!(select(&table, 0.0), 0);
+        assert_eq!(select(&table, 0.2499), 0);
+        assert_eq!(select(&table, 0.25), 1);
+        assert_eq!(select(&table, 0.7), 2);
+        assert_eq!(select(&table, 0.999_999_94), 2);
+        assert_eq!(select(&table[..1], 0.9), 0);
+    }
+}

@@ -1,0 +1,150 @@
+//! Monte Carlo path tracing (`path.wgsl` is the twin): one path per pixel sample, next-event
+//! estimation at every non-specular vertex, multiple importance sampling of light and BSDF
+//! samples with the power heuristic (Veach 1997, ch. 9), Russian roulette once a path has
+//! [`RR_DEPTH`] segments.
+//!
+//! `max_depth` counts path segments as Mitsuba's `max_depth` does: a light reached by the
+//! k-th segment (by a BSDF sample or by a shadow ray) contributes while k ≤ max_depth, so 1
+//! shows emitters only and 2 is direct lighting.
+//!
+//! Both backends consume the random stream in the same order: at every vertex three numbers
+//! for the light sample (drawn even where unused), three for the BSDF, and one for Russian
+//! roulette when it applies.
+
+use super::bsdf::{self, is_specular};
+use super::camera::ray_through;
+use super::emitters::{self, area_pdf, emitted_cos};
+use super::sampler::{Sampler, pixel_jitter};
+use super::shade::ShadeInputs;
+use super::spawn::spawn_origin;
+use crate::accel::traverse;
+use crate::math::{Ray, V3};
+use crate::primitives::PrimKind;
+use crate::scene::MaterialKind;
+
+/// Russian roulette may end a path once it has this many segments.
+pub const RR_DEPTH: u32 = 3;
+/// Shadow rays stop this fraction short of the sampled light point, so the emitter's own
+/// surface does not count as a blocker.
+pub const SHADOW_REACH: f32 = 1.0 - 1.0 / 4096.0;
+
+/// The power heuristic with β = 2 for a sample drawn with density `pdf_a` against a second
+/// technique of density `pdf_b`.
+#[inline]
+pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
+    let (a, b) = (pdf_a * pdf_a, pdf_b * pdf_b);
+    if a + b > 0.0 { a / (a + b) } else { 0.0 }
+}
+
+#[inline]
+fn uniform3(rng: &mut Sampler) -> [f32; 3] {
+    let a = rng.next_f32();
+    let b = rng.next_f32();
+    [a, b, rng.next_f32()]
+}
+
+/// The camera ray of sample `s` of pixel (x, y), jittered inside the pixel.
+#[inline]
+pub fn camera_ray(inp: &ShadeInputs, x: u32, y: u32, s: u32) -> Ray<f32> {
+    let f = inp.frame;
+    let (ox, oy) = pixel_jitter(y * f.width + x, s, f.seed);
+    ray_through(f, x, y, ox, oy)
+}
+
+/// Radiance arriving along `ray`, one path.
+pub fn radiance(inp: &ShadeInputs, mut ray: Ray<f32>, rng: &mut Sampler) -> V3<f32> {
+    let (f, g) = (inp.frame, inp.gpu);
+    let mut beta = V3::splat(1.0f32);
+    let mut sum = V3::zero();
+    let mut specular = true;
+    let mut pdf_bsdf = 0.0f32;
+    for seg in 1..=f.max_depth {
+        let Some(hit) = traverse::nearest(inp.bvh, inp.prims, &ray, 0.0, f32::INFINITY) else {
+            sum += beta.mul_elem(V3::from_array(f.background));
+            break;
+        };
+        let m = &g.materials[hit.tag.material as usize];
+        let front = ray.dir.dot(hit.normal) < 0.0;
+        let ns = if front { hit.normal } else { -hit.normal };
+        if m.kind == MaterialKind::Emissive as u32 {
+            let cos_l = emitted_cos(m.flags, -ray.dir.dot(hit.normal));
+            if cos_l > 0.0 {
+                let sampled = matches!(hit.prim.kind(), PrimKind::Triangle | PrimKind::Sphere);
+                let w = if specular || !sampled {
+                    1.0
+                } else {
+                    power_heuristic(pdf_bsdf, area_pdf(f, m.radiance, hit.t * hit.t, cos_l))
+                };
+                sum += beta.mul_elem(V3::from_array(m.radiance)) * w;
+            }
+        }
+        if seg == f.max_depth {
+            break;
+        }
+        let wo = -ray.dir;
+        let u_light = uniform3(rng);
+        if !is_specular(m)
+            && let Some(ls) = emitters::sample(g, f, ray.at(hit.t), u_light)
+        {
+            let (fc, pdf) = bsdf::eval(m, wo, ls.dir, ns);
+            if fc.max_component() > 0.0 {
+                let origin = spawn_origin(&ray, hit.t, ns);
+                let shadow = Ray::new(origin, ls.dir);
+                if traverse::nearest(inp.bvh, inp.prims, &shadow, 0.0, ls.dist * SHADOW_REACH).is_none() {
+                    let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
+                    sum += beta.mul_elem(fc).mul_elem(ls.value) * w;
+                }
+            }
+        }
+        let Some(bs) = bsdf::sample(m, wo, ns, front, uniform3(rng)) else {
+            break;
+        };
+        beta = beta.mul_elem(bs.weight);
+        specular = bs.specular;
+        pdf_bsdf = bs.pdf;
+        if seg >= f.rr_depth {
+            let q = beta.max_component().min(0.95);
+            if rng.next_f32() >= q {
+                break;
+            }
+            beta = beta / q;
+        }
+        let side = if bs.dir.dot(hit.normal) >= 0.0 { hit.normal } else { -hit.normal };
+        ray = Ray::new(spawn_origin(&ray, hit.t, side), bs.dir);
+    }
+    sum
+}
+
+/// Radiance of sample `s` of pixel (x, y); a non-finite sample (which a valid scene never
+/// produces) counts as black.
+#[inline]
+pub fn sample_pixel(inp: &ShadeInputs, x: u32, y: u32, s: u32) -> V3<f32> {
+    let f = inp.frame;
+    let mut rng = Sampler::new(y * f.width + x, s, f.seed);
+    let c = radiance(inp, camera_ray(inp, x, y, s), &mut rng);
+    if c.is_finite() { c } else { V3::zero() }
+}
+
+/// The mean of samples `sample_base .. sample_base + spp` of pixel (x, y), added in sample
+/// order as the GPU's passes add them.
+pub fn shade_pixel(inp: &ShadeInputs, x: u32, y: u32) -> [f32; 3] {
+    let f = inp.frame;
+    let mut sum = V3::zero();
+    for s in 0..f.spp {
+        sum += sample_pixel(inp, x, y, f.sample_base + s);
+    }
+    (sum / f.spp as f32).to_array()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn power_heuristic_weights_sum_to_one() {
+        for (a, b) in [(1.0, 1.0), (0.3, 7.0), (5.0, 0.0)] {
+            assert!((power_heuristic(a, b) + power_heuristic(b, a) - 1.0).abs() < 1e-6);
+        }
+        assert_eq!(power_heuristic(0.0, 0.0), 0.0);
+    }
+}
