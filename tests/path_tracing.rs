@@ -1,0 +1,300 @@
+//! The path tracer against analytic answers (white furnace) and the GPU against the CPU
+//! reference, statistically: runs on lavapipe in CI.
+
+mod common;
+
+use common::gpu;
+use std::path::Path;
+use std::sync::Arc;
+use strahl::backend::cpu;
+use strahl::backend::gpu::{GpuContext, SceneBuffers, render::Progressive};
+use strahl::gpu_types::GpuFrame;
+use strahl::image::Image;
+use strahl::render::Prepared;
+use strahl::scene::{RenderMode, Scene, file::parse};
+
+fn scene(src: &str) -> Scene {
+    parse(src, Path::new("test.toml"), Path::new(".")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The camera inside a closed sphere that reflects diffusely with albedo 0.8 and emits
+/// radiance 1 from its inside: every path sees L = Σ_{k<D} 0.8^k for paths of at most D
+/// segments, 5 (1 − 0.8^D), whichever direction it starts in.
+fn furnace(max_depth: u32) -> (Prepared, f64) {
+    let src = format!(
+        r#"
+[camera]
+eye = [0.0, 0.0, 0.0]
+look_at = [0.0, 0.0, 1.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 90.0
+[image]
+width = 24
+height = 16
+[render]
+mode = "path"
+max_depth = {max_depth}
+background = [0.0, 0.0, 0.0]
+[[materials]]
+name = "furnace"
+type = "emissive"
+color = [0.8, 0.8, 0.8]
+radiance = [1.0, 1.0, 1.0]
+two_sided = true
+[[objects]]
+type = "sphere"
+center = [0.3, -0.2, 0.5]
+radius = 3.0
+material = "furnace"
+"#
+    );
+    let expected = 5.0 * (1.0 - 0.8f64.powi(max_depth as i32));
+    (Prepared::new(scene(&src)), expected)
+}
+
+/// Mean over pixels and channels, and its standard error from the spread of pixel means
+/// (pixels are independent estimates).
+fn mean_and_error(img: &Image) -> (f64, f64) {
+    let v: Vec<f64> = img.pixels.iter().map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / 3.0).collect();
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
+    (mean, (var / n).sqrt())
+}
+
+fn cpu_image(prep: &Arc<Prepared>, frame: GpuFrame, spp: u32) -> Image {
+    let mut p = cpu::Progressive::new(prep.clone(), frame);
+    p.add_samples(spp);
+    p.image()
+}
+
+fn gpu_image(ctx: &Arc<GpuContext>, prep: &Prepared, frame: GpuFrame, spp: u32) -> Image {
+    let buffers = SceneBuffers::upload(ctx, &prep.gpu).unwrap();
+    let mut p = Progressive::new(ctx.clone(), buffers, frame).unwrap();
+    p.add_samples(spp).unwrap();
+    p.image().unwrap()
+}
+
+fn check_furnace(what: &str, img: &Image, expected: f64) {
+    assert_eq!(img.non_finite_count(), 0);
+    let (mean, se) = mean_and_error(img);
+    eprintln!("{what}: mean {mean:.5} ± {se:.5}, expected {expected:.5}");
+    // The test has power: its standard error is far below the value it checks.
+    assert!(se < 0.01 * expected, "{what}: standard error {se} too large to test anything");
+    // 5 standard errors (a false alarm once in ~2 million runs), plus f32 accumulation slack.
+    assert!((mean - expected).abs() < 5.0 * se + 1e-4 * expected, "{what}: {mean} ± {se}, expected {expected}");
+}
+
+#[test]
+fn white_furnace_converges_to_the_analytic_value_on_the_cpu() {
+    for (depth, spp) in [(2, 64), (5, 64), (64, 128)] {
+        let (prep, expected) = furnace(depth);
+        let prep = Arc::new(prep);
+        let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
+        check_furnace(&format!("cpu, max_depth {depth}"), &cpu_image(&prep, frame, spp), expected);
+    }
+}
+
+#[test]
+fn white_furnace_converges_to_the_analytic_value_on_the_gpu() {
+    let Some(ctx) = gpu() else { return };
+    let ctx = Arc::new(ctx);
+    for (depth, spp) in [(2, 64), (5, 64), (64, 128)] {
+        let (prep, expected) = furnace(depth);
+        let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
+        check_furnace(&format!("gpu, max_depth {depth}"), &gpu_image(&ctx, &prep, frame, spp), expected);
+    }
+}
+
+/// Every material and light kind the path tracer has: diffuse, smooth and rough conductor,
+/// glass, a one-sided emissive quad, an emissive sphere, an emissive cylinder (found only by
+/// BSDF sampling), point and directional lights, a plane and a triangle mesh of a polygon.
+const MIXED: &str = r#"
+[camera]
+eye = [0.0, 1.5, -7.0]
+look_at = [0.0, 0.5, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 50.0
+[image]
+width = 48
+height = 36
+[render]
+mode = "path"
+max_depth = 6
+background = [0.05, 0.06, 0.08]
+[[materials]]
+name = "white"
+type = "diffuse"
+color = [0.7, 0.7, 0.7]
+[[materials]]
+name = "red"
+type = "diffuse"
+color = [0.8, 0.2, 0.1]
+[[materials]]
+name = "chrome"
+type = "mirror"
+color = [0.9, 0.9, 0.9]
+[[materials]]
+name = "brushed"
+type = "mirror"
+color = [1.0, 0.8, 0.4]
+roughness = 0.3
+[[materials]]
+name = "glass"
+type = "dielectric"
+ior = 1.5
+[[materials]]
+name = "panel"
+type = "emissive"
+radiance = [6.0, 6.0, 5.0]
+[[materials]]
+name = "bulb"
+type = "emissive"
+radiance = [3.0, 1.0, 0.5]
+[[objects]]
+type = "plane"
+point = [0.0, -1.0, 0.0]
+normal = [0.0, 1.0, 0.0]
+material = "white"
+[[objects]]
+type = "sphere"
+center = [-1.8, 0.0, 0.5]
+radius = 1.0
+material = "red"
+[[objects]]
+type = "sphere"
+center = [0.4, 0.0, 1.0]
+radius = 1.0
+material = "brushed"
+[[objects]]
+type = "sphere"
+center = [1.6, -0.4, -1.0]
+radius = 0.6
+material = "glass"
+[[objects]]
+type = "sphere"
+center = [-0.5, -0.6, -1.5]
+radius = 0.4
+material = "chrome"
+[[objects]]
+type = "sphere"
+center = [2.2, 1.8, 1.5]
+radius = 0.3
+material = "bulb"
+[[objects]]
+type = "cylinder"
+p1 = [-3.0, -1.0, 3.0]
+p2 = [-3.0, 2.0, 3.0]
+radius = 0.2
+caps = true
+material = "bulb"
+[[objects]]
+type = "polygon"
+vertices = [[-1.0, 3.5, -1.0], [1.0, 3.5, -1.0], [1.0, 3.5, 1.0], [-1.0, 3.5, 1.0]]
+material = "panel"
+[[lights]]
+type = "point"
+position = [3.0, 3.0, -3.0]
+intensity = [4.0, 4.0, 4.0]
+[[lights]]
+type = "directional"
+direction = [0.3, -1.0, 0.4]
+intensity = [0.3, 0.3, 0.35]
+"#;
+
+#[test]
+fn gpu_and_cpu_draw_the_same_paths_for_the_same_samples() {
+    let Some(ctx) = gpu() else { return };
+    let ctx = Arc::new(ctx);
+    let prep = Arc::new(Prepared::new(scene(MIXED)));
+    let frame = prep.frame(48, 36);
+    let spp = 8;
+    let c = cpu_image(&prep, frame, spp);
+    let g = gpu_image(&ctx, &prep, frame, spp);
+    // Same pixel, same sample index, same seed: the same random numbers, so the same paths
+    // except where f32 rounding differs at a branch (a Fresnel or roulette draw on the edge).
+    let close = c
+        .pixels
+        .iter()
+        .zip(&g.pixels)
+        .filter(|(a, b)| a.iter().zip(b.iter()).all(|(x, y)| (x - y).abs() <= 1e-3 * (1.0 + x.abs())))
+        .count();
+    let frac = close as f64 / c.pixels.len() as f64;
+    eprintln!("pixels equal to 1e-3: {:.2} %", 100.0 * frac);
+    assert!(frac > 0.95, "only {:.2} % of pixels agree", 100.0 * frac);
+}
+
+/// Independent renders (different seeds) of each backend: per region of the image and per
+/// channel, the difference of the two backends' means is compared with the Monte Carlo error
+/// estimated from the spread of B independent batches.
+#[test]
+fn gpu_and_cpu_images_agree_within_monte_carlo_error() {
+    let Some(ctx) = gpu() else { return };
+    let ctx = Arc::new(ctx);
+    let prep = Arc::new(Prepared::new(scene(MIXED)));
+    let (w, h) = (48u32, 36u32);
+    const BATCHES: u32 = 6;
+    const SPP: u32 = 4;
+    const REGIONS: u32 = 4; // per side
+    let region_means = |img: &Image| -> Vec<f64> {
+        let mut sums = vec![0.0f64; (REGIONS * REGIONS * 3) as usize];
+        for y in 0..h {
+            for x in 0..w {
+                let r = ((y * REGIONS / h) * REGIONS + x * REGIONS / w) as usize;
+                for c in 0..3 {
+                    sums[r * 3 + c] += img.get(x, y)[c] as f64;
+                }
+            }
+        }
+        let per = (w * h / (REGIONS * REGIONS)) as f64;
+        sums.iter().map(|s| s / per).collect()
+    };
+    let stats = |gpu_side: bool| -> Vec<(f64, f64)> {
+        let batches: Vec<Vec<f64>> = (0..BATCHES)
+            .map(|b| {
+                let mut frame = prep.frame(w, h);
+                frame.seed = if gpu_side { 1000 + b } else { 2000 + b };
+                let img = if gpu_side { gpu_image(&ctx, &prep, frame, SPP) } else { cpu_image(&prep, frame, SPP) };
+                assert_eq!(img.non_finite_count(), 0);
+                region_means(&img)
+            })
+            .collect();
+        (0..batches[0].len())
+            .map(|k| {
+                let xs: Vec<f64> = batches.iter().map(|b| b[k]).collect();
+                let m = xs.iter().sum::<f64>() / BATCHES as f64;
+                let var = xs.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (BATCHES - 1) as f64;
+                (m, (var / BATCHES as f64).sqrt())
+            })
+            .collect()
+    };
+    let g = stats(true);
+    let c = stats(false);
+    let mut worst = 0.0f64;
+    let mut lit = 0;
+    for (k, ((mg, sg), (mc, sc))) in g.iter().zip(&c).enumerate() {
+        let se = (sg * sg + sc * sc).sqrt();
+        // Regions that see only the background have no noise; they must agree to rounding.
+        let z = (mg - mc).abs() / (se + 1e-5 * mc.abs().max(1e-3));
+        worst = worst.max(z);
+        lit += (*mc > 0.1) as usize;
+        // With 6 batches the studentised difference has heavy tails (t with ~10 degrees of
+        // freedom): 6 is beyond its 99.99th percentile over 48 comparisons.
+        assert!(z < 6.0, "region {} channel {}: gpu {mg:.4} ± {sg:.4}, cpu {mc:.4} ± {sc:.4}", k / 3, k % 3);
+    }
+    eprintln!("largest |difference| / MC error over {} region channels: {worst:.2}", g.len());
+    assert!(lit > g.len() / 2, "the test scene must be lit: {lit} of {} region channels", g.len());
+}
+
+#[test]
+fn path_mode_renders_every_shipped_scene_without_non_finite_pixels_on_the_cpu() {
+    for path in common::shipped_scenes() {
+        let mut s = Scene::load(&path).unwrap();
+        s.render.mode = RenderMode::Path;
+        let prep = Arc::new(Prepared::new(s));
+        let frame = prep.frame(40, 30);
+        let img = cpu_image(&prep, frame, 2);
+        assert_eq!(img.non_finite_count(), 0, "{}", path.display());
+        assert!(img.pixels.iter().all(|p| p.iter().all(|&c| c >= 0.0)), "{}: negative radiance", path.display());
+    }
+}
