@@ -1,10 +1,13 @@
 //! Convergence of progressive Monte Carlo rendering: error against wall time.
 //!
 //! A backend implements [`Progressive`]; [`measure`] adds samples on a [`Schedule`], times
-//! them, and compares each intermediate mean with a reference image ([`errors`]).
+//! them, and compares each intermediate mean with a reference image ([`errors`]). The rows go
+//! to a CSV file ([`write_csv`]), a log-log plot ([`plot`]) and a Markdown table ([`table`]).
 
 use crate::image::Image;
 use anyhow::{Context, Result, bail, ensure};
+use std::fmt::Write as _;
+use std::path::Path;
 use std::time::Instant;
 
 /// A renderer that adds samples to a running per-pixel mean (one backend).
@@ -201,6 +204,224 @@ fn fixed_time_batch(spp: u32, seconds: f64, budget: f64, max_spp: u32) -> u32 {
     let fits = if per_sample > 0.0 { ((budget - seconds) / per_sample).floor().max(0.0) } else { f64::INFINITY };
     let n = (spp as f64).min(fits).min(max_spp.saturating_sub(spp) as f64);
     n as u32
+}
+
+/// Writes `rows` as CSV: `backend,label,spp,seconds,rmse,rmse_clamped,rel_mse,mean_flip`.
+pub fn write_csv(rows: &[Row], path: &Path) -> Result<()> {
+    let mut s = String::from("backend,label,spp,seconds,rmse,rmse_clamped,rel_mse,mean_flip\n");
+    for r in rows {
+        let e = &r.errors;
+        writeln!(
+            s,
+            "{},{},{},{},{},{},{},{}",
+            csv_field(&r.backend),
+            csv_field(&r.label),
+            r.spp,
+            r.seconds,
+            e.rmse,
+            e.rmse_clamped,
+            e.rel_mse,
+            e.mean_flip
+        )
+        .expect("writing to a String");
+    }
+    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// A CSV field, quoted (RFC 4180) when it holds a comma, a quote or a line break.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
+}
+
+/// A Markdown table of `rows`, one line each.
+pub fn table(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "| backend | spp | seconds | samples/s (M) | RMSE | RMSE clamped | relMSE | mean FLIP |\n\
+         |---|--:|--:|--:|--:|--:|--:|--:|\n",
+    );
+    for r in rows {
+        let rate = r.samples_per_second();
+        let rate = if rate.is_finite() { format!("{:.2}", rate / 1e6) } else { "-".to_string() };
+        let e = &r.errors;
+        writeln!(
+            s,
+            "| {} | {} | {:.3} | {} | {} | {} | {} | {} |",
+            r.label.replace('|', "\\|"),
+            r.spp,
+            r.seconds,
+            rate,
+            sig4(e.rmse),
+            sig4(e.rmse_clamped),
+            sig4(e.rel_mse),
+            sig4(e.mean_flip)
+        )
+        .expect("writing to a String");
+    }
+    s
+}
+
+/// `x` to 4 significant digits, in scientific notation when it is very small or large.
+fn sig4(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let mag = x.abs().log10().floor() as i32;
+    if (-3..=4).contains(&mag) { format!("{:.*}", (3 - mag).max(0) as usize, x) } else { format!("{x:.3e}") }
+}
+
+/// Plot size in pixels.
+const PLOT_SIZE: (u32, u32) = (1000, 700);
+
+/// Registers the fonts the plots use (Ubuntu Light, bundled with egui) with plotters, once.
+fn register_fonts() -> Result<()> {
+    static DONE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    let ok = *DONE.get_or_init(|| {
+        plotters::style::register_font(
+            "sans-serif",
+            plotters::style::FontStyle::Normal,
+            epaint_default_fonts::UBUNTU_LIGHT,
+        )
+        .is_ok()
+    });
+    ensure!(ok, "the bundled plot font does not load");
+    Ok(())
+}
+
+/// Draws RMSE against wall time on log-log axes, one line per backend (by label), as a PNG.
+pub fn plot(rows: &[Row], title: &str, path: &Path) -> Result<()> {
+    use plotters::prelude::*;
+    register_fonts()?;
+    ensure!(!rows.is_empty(), "no measurements to plot");
+    // Log axes cannot show zeros (no time measured, an exact image): they sit a decade below
+    // the smallest positive value.
+    let x_floor = log_floor(rows.iter().map(|r| r.seconds));
+    let y_floor = log_floor(rows.iter().map(|r| r.errors.rmse));
+    let mut series: Vec<(&str, Vec<(f64, f64)>)> = Vec::new();
+    for r in rows {
+        let point = (r.seconds.max(x_floor), r.errors.rmse.max(y_floor));
+        match series.iter_mut().find(|(label, _)| *label == r.label) {
+            Some((_, points)) => points.push(point),
+            None => series.push((&r.label, vec![point])),
+        }
+    }
+    let points = || series.iter().flat_map(|(_, p)| p.iter());
+    let x_range = log_range(points().map(|p| p.0));
+    let y_range = log_range(points().map(|p| p.1));
+
+    let (w, h) = PLOT_SIZE;
+    let mut buf = vec![0u8; w as usize * h as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(plot_error)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 28))
+            .margin(20)
+            .x_label_area_size(50)
+            .y_label_area_size(80)
+            .build_cartesian_2d(log_axis(x_range), log_axis(y_range))
+            .map_err(plot_error)?;
+        chart
+            .configure_mesh()
+            .x_desc("wall time [s]")
+            .y_desc("RMSE (linear)")
+            .axis_desc_style(("sans-serif", 20))
+            .label_style(("sans-serif", 16))
+            .x_label_formatter(&|v| axis_label(*v))
+            .y_label_formatter(&|v| axis_label(*v))
+            .draw()
+            .map_err(plot_error)?;
+        for (i, (label, points)) in series.iter().enumerate() {
+            let color = SERIES_COLORS[i % SERIES_COLORS.len()];
+            chart
+                .draw_series(LineSeries::new(points.iter().copied(), color.stroke_width(2)).point_size(4))
+                .map_err(plot_error)?
+                .label(*label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .draw()
+            .map_err(plot_error)?;
+        root.present().map_err(plot_error)?;
+    }
+    image::RgbImage::from_raw(w, h, buf)
+        .context("plot buffer size mismatch")?
+        .save(path)
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+const SERIES_COLORS: [plotters::style::RGBColor; 6] = [
+    plotters::style::RGBColor(31, 119, 180),
+    plotters::style::RGBColor(214, 39, 40),
+    plotters::style::RGBColor(44, 160, 44),
+    plotters::style::RGBColor(148, 103, 189),
+    plotters::style::RGBColor(255, 127, 14),
+    plotters::style::RGBColor(23, 190, 207),
+];
+
+fn plot_error<E: std::error::Error + Send + Sync + 'static>(e: E) -> anyhow::Error {
+    anyhow::anyhow!("plotting: {e}")
+}
+
+/// A tenth of the smallest positive finite value (1e-6 when there is none).
+fn log_floor(values: impl Iterator<Item = f64>) -> f64 {
+    let min = values.filter(|v| v.is_finite() && *v > 0.0).fold(f64::INFINITY, f64::min);
+    if min.is_finite() { min / 10.0 } else { 1e-6 }
+}
+
+/// A log-axis range around positive `values` with some room on both sides; at least a factor
+/// of 10 wide so that one point, or equal ones, still get an axis with ticks.
+fn log_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
+    let (lo, hi) = values.fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (1.0, 1.0) };
+    let pad = ((10.0 * lo / hi).sqrt()).max(1.25);
+    lo / pad..hi * pad
+}
+
+/// A log axis over `range` with ticks at 1, 2, 5 × 10^k (more or fewer steps per decade as
+/// the range is narrow or wide) and grid lines at 1…9 × 10^k.
+fn log_axis(
+    range: std::ops::Range<f64>,
+) -> plotters::coord::combinators::WithKeyPoints<plotters::coord::combinators::LogCoord<f64>> {
+    use plotters::coord::combinators::{BindKeyPoints, IntoLogRange};
+    let (lo, hi) = (range.start, range.end);
+    let decades = (hi / lo).log10();
+    let (mantissas, every): (&[f64], i32) = match decades {
+        d if d < 1.2 => (&[1.0, 1.5, 2.0, 3.0, 5.0, 7.0], 1),
+        d if d < 3.0 => (&[1.0, 2.0, 5.0], 1),
+        d if d < 8.0 => (&[1.0], 1),
+        d => (&[1.0], (d / 8.0).ceil() as i32),
+    };
+    let powers = || (lo.log10().floor() as i32..=hi.log10().ceil() as i32).map(|k| 10f64.powi(k));
+    let within = |v: &f64| (lo..=hi).contains(v);
+    let bold: Vec<f64> = powers()
+        .filter(|p| p.log10().round() as i32 % every == 0)
+        .flat_map(|p| mantissas.iter().map(move |m| m * p))
+        .filter(within)
+        .collect();
+    let light: Vec<f64> = if decades < 8.0 {
+        powers().flat_map(|p| (1..10).map(move |m| m as f64 * p)).filter(within).collect()
+    } else {
+        vec![]
+    };
+    range.log_scale().with_key_points(bold).with_light_points(light)
+}
+
+/// A tick label on a log axis: at most two significant digits, without float noise.
+fn axis_label(v: f64) -> String {
+    let trim = |s: String| if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s };
+    if !(1e-3..1e4).contains(&v) {
+        let s = format!("{v:.1e}");
+        let (mantissa, exponent) = s.split_once('e').unwrap_or((&s, "0"));
+        format!("{}e{exponent}", trim(mantissa.to_string()))
+    } else {
+        let decimals = (1 - v.log10().floor() as i32).max(0) as usize;
+        trim(format!("{v:.decimals$}"))
+    }
 }
 
 #[cfg(test)]
@@ -407,5 +628,85 @@ mod tests {
         let mut p = Lazy(Noisy::new(&reference, Duration::ZERO));
         let msg = measure(&mut p, &reference, &Schedule::Doubling { max_spp: 4 }, &mut |_| {}).unwrap_err();
         assert!(msg.to_string().contains("holds 3 samples per pixel after adding 2 to 2, expected 4"), "{msg}");
+    }
+
+    fn sample_rows() -> Vec<Row> {
+        let e = |rmse: f64| Errors { rmse, rmse_clamped: rmse / 2.0, rel_mse: rmse * 2.0, mean_flip: rmse / 4.0 };
+        let row = |backend: &str, label: &str, spp: u32, seconds: f64, rmse: f64| Row {
+            backend: backend.to_string(),
+            label: label.to_string(),
+            width: 640,
+            height: 480,
+            spp,
+            seconds,
+            errors: e(rmse),
+        };
+        vec![
+            row("gpu", "gpu (llvmpipe (LLVM 15.0.6, 256 bits))", 1, 0.02, 0.1),
+            row("gpu", "gpu (llvmpipe (LLVM 15.0.6, 256 bits))", 2, 0.04, 0.071),
+            row("gpu", "gpu (llvmpipe (LLVM 15.0.6, 256 bits))", 4, 0.08, 0.05),
+            row("cpu", "cpu (2 threads)", 1, 0.3, 0.1),
+            row("cpu", "cpu (2 threads)", 2, 0.6, 0.071),
+            row("cpu", "cpu (2 threads)", 4, 1.2, 0.05),
+        ]
+    }
+
+    #[test]
+    fn csv_has_the_header_and_one_quoted_line_per_row() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.csv");
+        let mut rows = sample_rows();
+        rows[5].label = "say \"hi\"".to_string();
+        write_csv(&rows, &path).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[0], "backend,label,spp,seconds,rmse,rmse_clamped,rel_mse,mean_flip");
+        assert_eq!(lines.len(), rows.len() + 1);
+        assert_eq!(lines[1], "gpu,\"gpu (llvmpipe (LLVM 15.0.6, 256 bits))\",1,0.02,0.1,0.05,0.2,0.025");
+        assert!(lines[4].starts_with("cpu,cpu (2 threads),1,0.3,"));
+        assert!(lines[6].starts_with("cpu,\"say \"\"hi\"\"\",4,1.2,"));
+    }
+
+    #[test]
+    fn table_has_one_line_per_row() {
+        let mut rows = sample_rows();
+        rows[0].seconds = 0.0;
+        let t = table(&rows);
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(lines.len(), rows.len() + 2);
+        assert!(lines[0].starts_with("| backend | spp | seconds | samples/s (M) |"));
+        assert_eq!(lines[1].matches('|').count(), lines[0].matches('|').count());
+        assert_eq!(
+            lines[2],
+            "| gpu (llvmpipe (LLVM 15.0.6, 256 bits)) | 1 | 0.000 | - | 0.1000 | 0.05000 | 0.2000 | 0.02500 |"
+        );
+        // 640 × 480 × 4 samples in 1.2 s.
+        assert!(lines[7].contains("| 1.02 |"), "{}", lines[7]);
+        assert_eq!(sig4(12345.6), "12346");
+        assert_eq!(sig4(123456.0), "1.235e5");
+        assert_eq!(sig4(0.000_012_34), "1.234e-5");
+        assert_eq!(sig4(1.5), "1.500");
+    }
+
+    #[test]
+    fn log_axis_labels_are_short() {
+        let labels = [0.0015, 0.015, 0.1, 0.2, 1.5, 15.0, 20000.0, 1.5e-5, 1e-6].map(axis_label);
+        assert_eq!(labels, ["0.0015", "0.015", "0.1", "0.2", "1.5", "15", "2e4", "1.5e-5", "1e-6"]);
+    }
+
+    #[test]
+    fn plot_writes_a_png_even_for_degenerate_rows() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.png");
+        plot(&sample_rows(), "seed: RMSE against wall time", &path).unwrap();
+        let img = image::open(&path).unwrap();
+        assert_eq!((img.width(), img.height()), PLOT_SIZE);
+        let mut one = sample_rows();
+        one.truncate(1);
+        one[0].seconds = 0.0;
+        one[0].errors.rmse = 0.0;
+        plot(&one, "one row", &path).unwrap();
+        assert_eq!(image::open(&path).unwrap().width(), PLOT_SIZE.0);
+        assert!(plot(&[], "none", &path).is_err());
     }
 }
