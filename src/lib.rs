@@ -9,6 +9,7 @@
 
 pub mod accel;
 pub mod backend;
+pub mod converge;
 pub mod geometry;
 pub mod gpu_types;
 pub mod image;

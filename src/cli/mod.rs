@@ -1,6 +1,7 @@
 //! Subcommands of `strahl`.
 
 mod bench;
+mod converge;
 mod render;
 mod stiff;
 mod trace;
@@ -31,6 +32,8 @@ pub enum Command {
     Stiff(stiff::StiffArgs),
     /// Open an interactive window that renders a scene progressively on the GPU.
     View(view::ViewArgs),
+    /// Measure error against run time of progressive path tracing: CSV, plot and table.
+    Converge(converge::ConvergeArgs),
 }
 
 /// Where the work runs.
@@ -49,6 +52,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench(a) => bench::run(a),
         Command::Stiff(a) => stiff::run(a),
         Command::View(a) => view::run(a),
+        Command::Converge(a) => converge::run(a),
     }
 }
 

@@ -1,0 +1,204 @@
+//! `strahl converge`: error against wall time of progressive path tracing, per backend.
+
+use super::{BackendChoice, progress_bar};
+use anyhow::{Context, Result, bail, ensure};
+use clap::{Args, ValueEnum};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use strahl::converge::{Progressive, Row, Schedule};
+use strahl::image::Image;
+use strahl::render::Prepared;
+use strahl::scene::Scene;
+
+/// Which backends to measure.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ConvergeBackend {
+    Gpu,
+    Cpu,
+    Both,
+}
+
+impl ConvergeBackend {
+    fn list(self) -> Vec<BackendChoice> {
+        match self {
+            Self::Gpu => vec![BackendChoice::Gpu],
+            Self::Cpu => vec![BackendChoice::Cpu],
+            Self::Both => vec![BackendChoice::Gpu, BackendChoice::Cpu],
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct ConvergeArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Which backends to measure.
+    #[arg(long, value_enum, default_value = "both")]
+    pub backend: ConvergeBackend,
+    /// Reference image (linear EXR) at the render size; default: render one.
+    #[arg(long, value_name = "REF.exr", conflicts_with_all = ["reference_spp", "reference_backend"])]
+    pub reference: Option<PathBuf>,
+    /// Samples per pixel of the rendered reference.
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub reference_spp: u32,
+    /// Backend that renders the reference (default: gpu when it is measured, else cpu).
+    #[arg(long, value_enum)]
+    pub reference_backend: Option<BackendChoice>,
+    /// Most samples per pixel per backend: measured at 1, 2, 4, ... and this.
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub max_spp: u32,
+    /// Render each backend for this many seconds instead (at most --max-spp samples per pixel).
+    #[arg(long, value_name = "S", value_parser = positive_seconds)]
+    pub time: Option<f64>,
+    /// Image width (default: the scene's [image] width).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub width: Option<u32>,
+    /// Image height (default: the scene's [image] height).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub height: Option<u32>,
+    /// Directory for reference.exr, convergence.csv and convergence.png (created if missing).
+    #[arg(short, long, value_name = "DIR")]
+    pub output: PathBuf,
+}
+
+fn positive_seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|_| format!("not a number: {s:?}"))?;
+    if v.is_finite() && v > 0.0 { Ok(v) } else { Err(format!("must be a positive number of seconds, not {s}")) }
+}
+
+/// Samples per pixel added per step of the reference render, so that its progress bar moves.
+const REFERENCE_CHUNK: u32 = 16;
+
+pub fn run(a: ConvergeArgs) -> Result<()> {
+    if a.output.exists() && !a.output.is_dir() {
+        bail!("{}: exists and is not a directory", a.output.display());
+    }
+    if let Some(r) = &a.reference
+        && !r.is_file()
+    {
+        bail!("{}: no such reference image", r.display());
+    }
+    let scene = Scene::load(&a.scene)?;
+    let width = a.width.unwrap_or(scene.image.width);
+    let height = a.height.unwrap_or(scene.image.height);
+    if width as u64 * height as u64 > strahl::scene::file::MAX_IMAGE_PIXELS {
+        bail!("{width}x{height} is more than {} pixels", strahl::scene::file::MAX_IMAGE_PIXELS);
+    }
+    std::fs::create_dir_all(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
+    let backends = a.backend.list();
+    let schedule = match a.time {
+        Some(seconds) => Schedule::FixedTime { seconds, max_spp: a.max_spp },
+        None => Schedule::Doubling { max_spp: a.max_spp },
+    };
+
+    let prep = Arc::new(Prepared::new(scene));
+    eprintln!(
+        "scene: {} objects, {} triangles, BVH {} nodes (depth {}) built in {:.3} s",
+        prep.scene.objects.len(),
+        prep.prims.triangles.len(),
+        prep.bvh.nodes.len(),
+        prep.bvh.depth,
+        prep.build_time.as_secs_f64()
+    );
+
+    let reference = match &a.reference {
+        Some(path) => {
+            let img = Image::load(path)?;
+            ensure!(
+                (img.width, img.height) == (width, height),
+                "{}: the reference is {}x{}, the render size is {width}x{height}",
+                path.display(),
+                img.width,
+                img.height
+            );
+            println!("reference: {}", path.display());
+            img
+        }
+        None => {
+            let backend = a.reference_backend.unwrap_or(if backends.contains(&BackendChoice::Gpu) {
+                BackendChoice::Gpu
+            } else {
+                BackendChoice::Cpu
+            });
+            if a.max_spp.saturating_mul(4) > a.reference_spp {
+                eprintln!(
+                    "note: the reference ({} spp) shares its first samples with the measured runs; \
+                     errors near {} spp are underestimated",
+                    a.reference_spp, a.max_spp
+                );
+            }
+            let img = render_reference(&prep, backend, width, height, a.reference_spp)?;
+            let path = a.output.join("reference.exr");
+            img.save(&path)?;
+            println!(
+                "reference: {} spp on the {} backend, wrote {}",
+                a.reference_spp,
+                backend_id(backend),
+                path.display()
+            );
+            img
+        }
+    };
+    let bad = reference.non_finite_count();
+    ensure!(bad == 0, "the reference has {bad} non-finite (NaN or infinite) pixels");
+
+    let mut rows = Vec::new();
+    for backend in backends {
+        let mut p = open_backend(&prep, backend, width, height)
+            .with_context(|| format!("opening the {} backend", backend_id(backend)))?;
+        println!("{}:", p.label());
+        rows.extend(strahl::converge::measure(p.as_mut(), &reference, &schedule, &mut print_row)?);
+    }
+
+    let csv = a.output.join("convergence.csv");
+    strahl::converge::write_csv(&rows, &csv)?;
+    let png = a.output.join("convergence.png");
+    strahl::converge::plot(&rows, &plot_title(&a.scene, width, height), &png)?;
+    println!();
+    print!("{}", strahl::converge::table(&rows));
+    println!();
+    println!("wrote {}", csv.display());
+    println!("wrote {}", png.display());
+    Ok(())
+}
+
+/// The progressive path tracer of `backend` for `prep` at width×height.
+fn open_backend(prep: &Arc<Prepared>, backend: BackendChoice, width: u32, height: u32) -> Result<Box<dyn Progressive>> {
+    // filled in by the path tracer
+    let _ = (prep, width, height);
+    bail!("progressive path tracing on the {} backend is not built yet", backend_id(backend))
+}
+
+/// Renders `spp` samples per pixel on `backend`, in chunks under a progress bar.
+fn render_reference(prep: &Arc<Prepared>, backend: BackendChoice, width: u32, height: u32, spp: u32) -> Result<Image> {
+    let mut p = open_backend(prep, backend, width, height)
+        .with_context(|| format!("opening the {} backend for the reference", backend_id(backend)))?;
+    let bar = progress_bar(spp as u64, &format!("reference ({})", backend_id(backend)));
+    while p.samples() < spp {
+        p.add_samples(REFERENCE_CHUNK.min(spp - p.samples()))?;
+        bar.set_position(p.samples() as u64);
+    }
+    bar.finish_and_clear();
+    p.image()
+}
+
+fn backend_id(b: BackendChoice) -> &'static str {
+    match b {
+        BackendChoice::Gpu => "gpu",
+        BackendChoice::Cpu => "cpu",
+    }
+}
+
+fn print_row(r: &Row) {
+    let e = &r.errors;
+    println!(
+        "  {} {:>6} spp {:>9.3} s  RMSE {:.5}  clamped {:.5}  relMSE {:.3e}  FLIP {:.4}",
+        r.backend, r.spp, r.seconds, e.rmse, e.rmse_clamped, e.rel_mse, e.mean_flip
+    );
+}
+
+/// "seed.toml (640x480): RMSE against wall time".
+fn plot_title(scene: &Path, width: u32, height: u32) -> String {
+    let name = scene.file_name().map_or_else(|| scene.display().to_string(), |n| n.to_string_lossy().into_owned());
+    format!("{name} ({width}x{height}): RMSE against wall time")
+}
