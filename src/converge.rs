@@ -424,6 +424,45 @@ fn axis_label(v: f64) -> String {
     }
 }
 
+/// The CPU backend's progressive path tracer.
+impl Progressive for crate::backend::cpu::Progressive {
+    fn label(&self) -> String {
+        format!("cpu ({} threads)", rayon::current_num_threads())
+    }
+    fn backend(&self) -> &'static str {
+        "cpu"
+    }
+    fn add_samples(&mut self, n: u32) -> Result<()> {
+        crate::backend::cpu::Progressive::add_samples(self, n);
+        Ok(())
+    }
+    fn samples(&self) -> u32 {
+        crate::backend::cpu::Progressive::samples(self)
+    }
+    fn image(&mut self) -> Result<Image> {
+        Ok(crate::backend::cpu::Progressive::image(self))
+    }
+}
+
+/// The GPU backend's progressive path tracer.
+impl Progressive for crate::backend::gpu::render::Progressive {
+    fn label(&self) -> String {
+        format!("gpu ({})", self.context().adapter_info.name)
+    }
+    fn backend(&self) -> &'static str {
+        "gpu"
+    }
+    fn add_samples(&mut self, n: u32) -> Result<()> {
+        Ok(crate::backend::gpu::render::Progressive::add_samples(self, n)?)
+    }
+    fn samples(&self) -> u32 {
+        crate::backend::gpu::render::Progressive::samples(self)
+    }
+    fn image(&mut self) -> Result<Image> {
+        Ok(crate::backend::gpu::render::Progressive::image(self)?)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -65,6 +65,12 @@ impl Progressive {
         self.samples
     }
 
+    /// Starts over from zero samples.
+    pub fn reset(&mut self) {
+        self.sums.iter_mut().for_each(|s| *s = [0.0; 3]);
+        self.samples = 0;
+    }
+
     /// The mean of the samples so far (black before the first).
     pub fn image(&self) -> Image {
         let mut img = Image::new(self.frame.width, self.frame.height);

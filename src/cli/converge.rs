@@ -5,10 +5,12 @@ use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use strahl::backend::cpu;
+use strahl::backend::gpu::{self, GpuContext, SceneBuffers};
 use strahl::converge::{Progressive, Row, Schedule};
 use strahl::image::Image;
 use strahl::render::Prepared;
-use strahl::scene::Scene;
+use strahl::scene::{RenderMode, Scene};
 
 /// Which backends to measure.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -78,7 +80,8 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
     {
         bail!("{}: no such reference image", r.display());
     }
-    let scene = Scene::load(&a.scene)?;
+    let mut scene = Scene::load(&a.scene)?;
+    scene.render.mode = RenderMode::Path;
     let width = a.width.unwrap_or(scene.image.width);
     let height = a.height.unwrap_or(scene.image.height);
     if width as u64 * height as u64 > strahl::scene::file::MAX_IMAGE_PIXELS {
@@ -122,8 +125,8 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
             });
             if a.max_spp.saturating_mul(4) > a.reference_spp {
                 eprintln!(
-                    "note: the reference ({} spp) shares its first samples with the measured runs; \
-                     errors near {} spp are underestimated",
+                    "note: the reference ({} spp) is not much less noisy than the last measured image \
+                     ({} spp); its own noise adds to the errors measured there",
                     a.reference_spp, a.max_spp
                 );
             }
@@ -144,7 +147,7 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
 
     let mut rows = Vec::new();
     for backend in backends {
-        let mut p = open_backend(&prep, backend, width, height)
+        let mut p = open_backend(&prep, backend, width, height, MEASURED_SEED)
             .with_context(|| format!("opening the {} backend", backend_id(backend)))?;
         println!("{}:", p.label());
         rows.extend(strahl::converge::measure(p.as_mut(), &reference, &schedule, &mut print_row)?);
@@ -162,16 +165,39 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
     Ok(())
 }
 
-/// The progressive path tracer of `backend` for `prep` at width×height.
-fn open_backend(prep: &Arc<Prepared>, backend: BackendChoice, width: u32, height: u32) -> Result<Box<dyn Progressive>> {
-    // filled in by the path tracer
-    let _ = (prep, width, height);
-    bail!("progressive path tracing on the {} backend is not built yet", backend_id(backend))
+/// Seed of the measured runs; the rendered reference uses [`REFERENCE_SEED`], so its noise is
+/// independent of theirs.
+const MEASURED_SEED: u32 = 0;
+const REFERENCE_SEED: u32 = 0x9e37_79b9;
+
+/// The progressive path tracer of `backend` for `prep` at width×height, with its pipeline
+/// compiled and warmed up (one discarded pass) so that timing starts with rendering only.
+fn open_backend(
+    prep: &Arc<Prepared>,
+    backend: BackendChoice,
+    width: u32,
+    height: u32,
+    seed: u32,
+) -> Result<Box<dyn Progressive>> {
+    let mut frame = prep.frame(width, height);
+    frame.seed = seed;
+    Ok(match backend {
+        BackendChoice::Cpu => Box::new(cpu::Progressive::new(prep.clone(), frame)),
+        BackendChoice::Gpu => {
+            let ctx = Arc::new(GpuContext::new()?);
+            let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
+            let mut p = gpu::render::Progressive::new(ctx, buffers, frame)?;
+            // lavapipe compiles the shader at its first dispatch.
+            p.add_samples(1)?;
+            p.reset();
+            Box::new(p)
+        }
+    })
 }
 
 /// Renders `spp` samples per pixel on `backend`, in chunks under a progress bar.
 fn render_reference(prep: &Arc<Prepared>, backend: BackendChoice, width: u32, height: u32, spp: u32) -> Result<Image> {
-    let mut p = open_backend(prep, backend, width, height)
+    let mut p = open_backend(prep, backend, width, height, REFERENCE_SEED)
         .with_context(|| format!("opening the {} backend for the reference", backend_id(backend)))?;
     let bar = progress_bar(spp as u64, &format!("reference ({})", backend_id(backend)));
     while p.samples() < spp {

@@ -191,6 +191,16 @@ impl Progressive {
         self.samples
     }
 
+    /// Starts over from zero samples (the next pass overwrites the sums).
+    pub fn reset(&mut self) {
+        self.samples = 0;
+    }
+
+    /// Sets the seed of the random numbers; takes effect from the next pass.
+    pub fn set_seed(&mut self, seed: u32) {
+        self.frame.seed = seed;
+    }
+
     /// The mean of the samples so far (black before the first).
     pub fn image(&self) -> Result<Image, GpuError> {
         let mut img = Image::new(self.frame.width, self.frame.height);
