@@ -66,6 +66,17 @@ fn run_viewer(dir: &Path, args: &[&str]) -> (bool, String, String) {
 
 #[test]
 fn the_window_shows_the_rendered_scene_beside_the_side_panel() {
+    window_matches_the_library(strahl::scene::RenderMode::Whitted);
+}
+
+#[test]
+fn the_path_mode_window_shows_the_path_traced_samples_of_the_library() {
+    window_matches_the_library(strahl::scene::RenderMode::Path);
+}
+
+/// Runs the viewer for three frames in `mode` and compares its screenshot with the library's
+/// render of the same samples; checks the side panel too.
+fn window_matches_the_library(mode: strahl::scene::RenderMode) {
     if !on_path("xvfb-run") {
         if skip_gpu_tests() {
             eprintln!("skipping the viewer test: xvfb-run not found");
@@ -79,7 +90,17 @@ fn the_window_shows_the_rendered_scene_beside_the_side_panel() {
     let scene_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/sphere.toml");
     let (ok, stdout, stderr) = run_viewer(
         dir.path(),
-        &[scene_path.to_str().unwrap(), "--frames", "3", "--scale", "1", "--screenshot", shot.to_str().unwrap()],
+        &[
+            scene_path.to_str().unwrap(),
+            "--mode",
+            mode.name(),
+            "--frames",
+            "3",
+            "--scale",
+            "1",
+            "--screenshot",
+            shot.to_str().unwrap(),
+        ],
     );
     assert!(ok, "the viewer failed\nstdout:\n{stdout}\nstderr:\n{stderr}");
     let [x, y, w, h] = numbers(&stdout, "image_rect")[..] else { panic!("image_rect: {stdout}") };
@@ -100,8 +121,7 @@ fn the_window_shows_the_rendered_scene_beside_the_side_panel() {
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
     let mut frame = prep.frame(w, h);
     frame.spp = samples;
-    let (reference, _) =
-        render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
+    let (reference, _) = render(&ctx, &buffers, &frame, mode, buffers.key, &|_, _| {}).unwrap();
     let reference = reference.to_srgb8();
     let mut close = 0usize;
     for py in 0..h {
@@ -115,7 +135,11 @@ fn the_window_shows_the_rendered_scene_beside_the_side_panel() {
     }
     let share = close as f64 / (w * h) as f64;
     eprintln!("{:.3} % of {w}x{h} image pixels within 2 codes of the library render", share * 100.0);
-    assert!(share >= 0.99, "only {:.3} % of the image pixels match the GPU render within 2 codes", share * 100.0);
+    assert!(
+        share >= 0.99,
+        "{mode:?}: only {:.3} % of the image pixels match the GPU render within 2 codes",
+        share * 100.0
+    );
 
     // The side panel: its own background, with text on it, unlike the image.
     let most_common = |x0: u32, x1: u32| {

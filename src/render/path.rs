@@ -22,8 +22,10 @@ use crate::math::{Ray, V3};
 use crate::primitives::PrimKind;
 use crate::scene::MaterialKind;
 
-/// Russian roulette may end a path once it has this many segments.
-pub const RR_DEPTH: u32 = 3;
+/// Russian roulette may end a path once it has this many segments: Mitsuba's default
+/// `rr_depth`. (From 3 segments on, the seed scene came out 25 % noisier per sample for 20–35 %
+/// less time per sample: its spheres inside the glass are lit only along long caustic paths.)
+pub const RR_DEPTH: u32 = 5;
 /// Shadow rays stop this fraction short of the sampled light point, so the emitter's own
 /// surface does not count as a blocker.
 pub const SHADOW_REACH: f32 = 1.0 - 1.0 / 4096.0;

@@ -36,10 +36,12 @@ pub enum ViewMode {
     Depth = 2,
     /// BVH nodes visited plus primitives tested per primary ray, as a heat map.
     Cost = 3,
+    /// Monte Carlo path tracing (the path program), converging as samples accumulate.
+    Path = 4,
 }
 
 impl ViewMode {
-    pub const ALL: [ViewMode; 4] = [Self::Whitted, Self::Normals, Self::Depth, Self::Cost];
+    pub const ALL: [ViewMode; 5] = [Self::Whitted, Self::Path, Self::Normals, Self::Depth, Self::Cost];
 
     pub fn label(self) -> &'static str {
         match self {
@@ -47,20 +49,38 @@ impl ViewMode {
             Self::Normals => "normals",
             Self::Depth => "depth",
             Self::Cost => "BVH cost",
+            Self::Path => "path",
         }
     }
 
     pub fn program(self) -> Program {
-        if self == Self::Whitted { Program::Render } else { Program::View }
+        match self {
+            Self::Whitted => Program::Render,
+            Self::Path => Program::Path,
+            _ => Program::View,
+        }
     }
 
     pub fn entry(self) -> &'static str {
-        if self == Self::Whitted { "render" } else { "view" }
+        match self {
+            Self::Whitted => "render",
+            Self::Path => "render_path",
+            _ => "view",
+        }
     }
 
-    /// The frame flags that select this mode in `view.wgsl` (none for Whitted).
+    /// The light transport of an image mode (None for the debug views).
+    pub fn render_mode(self) -> Option<crate::scene::RenderMode> {
+        match self {
+            Self::Whitted => Some(crate::scene::RenderMode::Whitted),
+            Self::Path => Some(crate::scene::RenderMode::Path),
+            _ => None,
+        }
+    }
+
+    /// The frame flags that select this mode in `view.wgsl` (none for the image modes).
     pub fn flags(self) -> u32 {
-        (self as u32) << VIEW_MODE_SHIFT
+        if self.render_mode().is_some() { 0 } else { (self as u32) << VIEW_MODE_SHIFT }
     }
 }
 

@@ -600,9 +600,9 @@ impl Viewer {
             return;
         }
         self.compare_requested = false;
-        if self.mode != ViewMode::Whitted {
+        let Some(render_mode) = self.mode.render_mode() else {
             return;
-        }
+        };
         let gpu_image = match self.gpu.read_mean() {
             Ok(i) => i,
             Err(e) => {
@@ -614,7 +614,7 @@ impl Viewer {
         let frame = GpuFrame { spp: acc.samples, sample_base: 0, flags: 0, ..*frame };
         self.cpu_job = Some(Job::spawn(move || {
             let start = Instant::now();
-            let cpu = crate::backend::cpu::render(&prep, &frame, crate::scene::RenderMode::Whitted, &|_| {});
+            let cpu = crate::backend::cpu::render(&prep, &frame, render_mode, &|_| {});
             let cpu_time = start.elapsed();
             let agreement = crate::metrics::agreement(&cpu, &gpu_image, 1);
             let (a, b) = (cpu.to_srgb8(), gpu_image.to_srgb8());
@@ -707,10 +707,6 @@ impl Viewer {
             ui.horizontal_wrapped(|ui| {
                 for m in ViewMode::ALL {
                     ui.radio_value(&mut self.mode, m, m.label());
-                    if m == ViewMode::Whitted {
-                        ui.add_enabled(false, egui::RadioButton::new(false, "path"))
-                            .on_disabled_hover_text("arrives with progressive path tracing");
-                    }
                 }
             });
             if self.mode == ViewMode::Cost
@@ -720,7 +716,10 @@ impl Viewer {
             {
                 self.present_dirty = true;
             }
-            ui.add_enabled(self.mode == ViewMode::Whitted, egui::Slider::new(&mut self.max_depth, 0..=64).text("max depth"));
+            ui.add_enabled(
+                self.mode.render_mode().is_some(),
+                egui::Slider::new(&mut self.max_depth, 0..=64).text("max depth"),
+            );
             ui.add(egui::Slider::new(&mut self.scale, 0.1..=1.0).text("resolution scale"));
             ui.add(egui::Slider::new(&mut self.max_samples, 1..=4096).logarithmic(true).text("sample limit"));
             let mut fov = self.camera.fov_y;
@@ -767,7 +766,7 @@ impl Viewer {
             ui.add(egui::Label::new(format!("adapter {}", self.gpu.ctx.adapter_name())).wrap());
             ui.separator();
 
-            let can_compare = self.mode == ViewMode::Whitted && self.cpu_job.is_none() && !self.compare_requested;
+            let can_compare = self.mode.render_mode().is_some() && self.cpu_job.is_none() && !self.compare_requested;
             if ui
                 .add_enabled(can_compare, egui::Button::new("compare with CPU"))
                 .on_hover_text("render this view on the CPU reference with the same samples and show the difference")
