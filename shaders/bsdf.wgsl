@@ -4,7 +4,7 @@
 #define_import_path strahl::bsdf
 
 #import strahl::types::{Material, MAT_MIRROR, MAT_DIELECTRIC}
-#import strahl::shade::fresnel_dielectric
+#import strahl::shade::{fresnel_dielectric, reflect_dir, refract_dir}
 
 const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.31830988618379067;
@@ -53,10 +53,6 @@ fn cosine_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
     let r = sqrt(u1);
     let phi = 2.0 * PI * u2;
     return vec3<f32>(r * cos(phi), r * sin(phi), sqrt(max(1.0 - u1, 0.0)));
-}
-
-fn reflect_about(d: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
-    return d - n * (2.0 * dot(d, n));
 }
 
 fn schlick(f0: vec3<f32>, cos_t: f32) -> vec3<f32> {
@@ -131,23 +127,20 @@ fn bsdf_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<f
         let eta = select(1.0 / m.ior, m.ior, front);
         let f = fresnel_dielectric(cos_i, eta);
         if u.x < f {
-            return BsdfSample(reflect_about(-wo, ns), vec3<f32>(1.0), 0.0, true, true);
+            return BsdfSample(reflect_dir(-wo, ns), vec3<f32>(1.0), 0.0, true, true);
         }
-        let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-        let cos_t = sqrt(max(1.0 - sin2_t, 0.0));
-        let dir = normalize(-wo / eta + ns * (cos_i / eta - cos_t));
-        return BsdfSample(dir, m.color / (eta * eta), 0.0, true, true);
+        return BsdfSample(refract_dir(-wo, ns, cos_i, 1.0 / eta), m.color / (eta * eta), 0.0, true, true);
     }
 #endif
 #ifdef MIRROR
     if m.kind == MAT_MIRROR {
         let cos_o = dot(wo, ns);
         if m.roughness < MIN_ROUGHNESS {
-            return BsdfSample(reflect_about(-wo, ns), schlick(m.color, cos_o), 0.0, true, true);
+            return BsdfSample(reflect_dir(-wo, ns), schlick(m.color, cos_o), 0.0, true, true);
         }
         let alpha = m.roughness;
         let h = to_world(ggx_sample_visible(alpha, to_local(wo, ns), u.y, u.z), ns);
-        let dir = reflect_about(-wo, h);
+        let dir = reflect_dir(-wo, h);
         let cos_i = dot(dir, ns);
         if cos_i <= 0.0 || cos_o <= 0.0 {
             return none;

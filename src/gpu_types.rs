@@ -266,7 +266,7 @@ impl GpuScene {
             emitter_norm: 0.0,
         };
         g.lights.extend(crate::render::emitters::stand_in_lights(scene));
-        let (emitters, norm) = crate::render::emitters::build_emitters(scene, &g, bvh);
+        let (emitters, norm) = crate::render::emitters::build_emitters(&g, bvh);
         g.emitters = emitters;
         g.emitter_norm = norm;
         g

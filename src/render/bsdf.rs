@@ -5,7 +5,7 @@
 //! the light goes (back along the incoming ray) and `ns` is the normal on `wo`'s side.
 //! "Weight" is f·|cos θ_i| / pdf, the factor a sampled direction multiplies the path by.
 
-use super::shade::fresnel_dielectric;
+use super::shade::{fresnel_dielectric, reflect, refract};
 use crate::gpu_types::GpuMaterial;
 use crate::math::V3;
 use crate::scene::MaterialKind;
@@ -62,11 +62,6 @@ pub fn cosine_hemisphere(u1: f32, u2: f32) -> V3<f32> {
     let r = u1.sqrt();
     let phi = 2.0 * PI * u2;
     V3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt())
-}
-
-#[inline]
-pub fn reflect(d: V3<f32>, n: V3<f32>) -> V3<f32> {
-    d - n * (2.0 * d.dot(n))
 }
 
 /// Schlick's approximation of a conductor's Fresnel reflectance with reflectance `f0` at
@@ -153,9 +148,7 @@ pub fn sample(m: &GpuMaterial, wo: V3<f32>, ns: V3<f32>, front: bool, u: [f32; 3
             return Some(BsdfSample { dir: reflect(-wo, ns), weight: V3::splat(1.0), pdf: 0.0, specular: true });
         }
         // Snell; radiance is compressed into the smaller solid angle by 1/η² (pbrt-v4 9.5.2).
-        let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-        let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
-        let dir = (-wo / eta + ns * (cos_i / eta - cos_t)).normalize();
+        let dir = refract(-wo, ns, cos_i, 1.0 / eta);
         return Some(BsdfSample { dir, weight: color / (eta * eta), pdf: 0.0, specular: true });
     }
     if m.kind == MaterialKind::Mirror as u32 {

@@ -70,7 +70,7 @@ fn area_centroid(tris: &[crate::geometry::Triangle<f64>]) -> (V3<f64>, f64) {
 }
 
 /// The emitter table of `g` (whose lights already hold any stand-ins) and 1 / Σ weights.
-pub fn build_emitters(_scene: &Scene, g: &GpuScene, bvh: &Bvh) -> (Vec<GpuEmitter>, f32) {
+pub fn build_emitters(g: &GpuScene, bvh: &Bvh) -> (Vec<GpuEmitter>, f32) {
     let emissive = |material: u32| {
         let m = &g.materials[material as usize];
         (m.kind == MaterialKind::Emissive as u32 && mean(m.radiance) > 0.0).then(|| mean(m.radiance) as f64)

@@ -179,15 +179,16 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
     color
 }
 
+/// Mirror direction of `d` about the unit normal `n`.
 #[inline]
-fn reflect(d: V3<f32>, n: V3<f32>) -> V3<f32> {
+pub fn reflect(d: V3<f32>, n: V3<f32>) -> V3<f32> {
     d - n * (2.0 * d.dot(n))
 }
 
 /// Refracted direction for incident `d`, normal `n` on the incident side, cos θ_i = −d·n and
 /// the ratio `eta_ratio` = n_incident / n_transmitted (no total internal reflection).
 #[inline]
-fn refract(d: V3<f32>, n: V3<f32>, cos_i: f32, eta_ratio: f32) -> V3<f32> {
+pub fn refract(d: V3<f32>, n: V3<f32>, cos_i: f32, eta_ratio: f32) -> V3<f32> {
     let sin2_t = eta_ratio * eta_ratio * (1.0 - cos_i * cos_i);
     let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
     (d * eta_ratio + n * (eta_ratio * cos_i - cos_t)).normalize()
