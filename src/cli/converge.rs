@@ -95,14 +95,7 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
     };
 
     let prep = Arc::new(Prepared::new(scene));
-    eprintln!(
-        "scene: {} objects, {} triangles, BVH {} nodes (depth {}) built in {:.3} s",
-        prep.scene.objects.len(),
-        prep.prims.triangles.len(),
-        prep.bvh.nodes.len(),
-        prep.bvh.depth,
-        prep.build_time.as_secs_f64()
-    );
+    super::print_scene_summary(&prep);
 
     let reference = match &a.reference {
         Some(path) => {

@@ -67,3 +67,15 @@ pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
     bar.set_message(what.to_string());
     bar
 }
+
+/// The one-line summary of a prepared scene, on stderr.
+pub fn print_scene_summary(prep: &strahl::render::Prepared) {
+    eprintln!(
+        "scene: {} objects, {} triangles, BVH {} nodes (depth {}) built in {:.3} s",
+        prep.scene.objects.len(),
+        prep.prims.triangles.len(),
+        prep.bvh.nodes.len(),
+        prep.bvh.depth,
+        prep.build_time.as_secs_f64()
+    );
+}

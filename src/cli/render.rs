@@ -76,14 +76,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         bail!("{width}x{height} is more than {} pixels", strahl::scene::file::MAX_IMAGE_PIXELS);
     }
     let prep = Prepared::new(scene);
-    eprintln!(
-        "scene: {} objects, {} triangles, BVH {} nodes (depth {}) built in {:.3} s",
-        prep.scene.objects.len(),
-        prep.prims.triangles.len(),
-        prep.bvh.nodes.len(),
-        prep.bvh.depth,
-        prep.build_time.as_secs_f64()
-    );
+    super::print_scene_summary(&prep);
     let mut frame = prep.frame(width, height);
     frame.seed = a.seed;
     let samples = width as f64 * height as f64 * frame.spp as f64;
