@@ -53,20 +53,9 @@ impl ViewMode {
         }
     }
 
-    pub fn program(self) -> Program {
-        match self {
-            Self::Whitted => Program::Render,
-            Self::Path => Program::Path,
-            _ => Program::View,
-        }
-    }
-
-    pub fn entry(self) -> &'static str {
-        match self {
-            Self::Whitted => "render",
-            Self::Path => "render_path",
-            _ => "view",
-        }
+    /// The program and entry point: the renderer's for the image modes, `view.wgsl`'s else.
+    pub fn program(self) -> (Program, &'static str) {
+        self.render_mode().map_or((Program::View, "view"), crate::backend::gpu::render::program_for)
     }
 
     /// The light transport of an image mode (None for the debug views).

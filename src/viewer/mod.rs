@@ -275,8 +275,8 @@ impl Viewer {
 
     fn pipeline_id(&self) -> (Program, FeatureKey, &'static str) {
         let key = if self.buffers.runs_with(self.full_key) { self.full_key } else { self.buffers.key };
-        let program = self.mode.program();
-        (program, key.for_program(program), self.mode.entry())
+        let (program, entry) = self.mode.program();
+        (program, key.for_program(program), entry)
     }
 
     /// "render SPHERES+POINT_LIGHTS" / "view SPHERES+COUNT_VISITS".

@@ -153,11 +153,6 @@ impl Progressive {
         Ok(Self { ctx, scene, frame, pipeline, output, out_group, samples: 0 })
     }
 
-    /// The pipeline's compile time (zero when it came from the cache).
-    pub fn compile_time(&self) -> Duration {
-        self.pipeline.compile_time
-    }
-
     pub fn context(&self) -> &GpuContext {
         &self.ctx
     }
@@ -194,11 +189,6 @@ impl Progressive {
     /// Starts over from zero samples (the next pass overwrites the sums).
     pub fn reset(&mut self) {
         self.samples = 0;
-    }
-
-    /// Sets the seed of the random numbers; takes effect from the next pass.
-    pub fn set_seed(&mut self, seed: u32) {
-        self.frame.seed = seed;
     }
 
     /// The mean of the samples so far (black before the first).
