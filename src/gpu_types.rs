@@ -112,7 +112,8 @@ pub struct GpuEmitter {
     pub pdf: f32,
 }
 
-/// Per-dispatch uniforms: the camera frame, image and tile, and render settings.
+/// Per-dispatch parameters: the camera frame, image and tile, and render settings (bound as a
+/// read-only storage buffer, see `shaders/bindings.wgsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuFrame {

@@ -37,7 +37,7 @@ impl Prepared {
         Self { scene, prims, bvh, gpu, build_time: start.elapsed() }
     }
 
-    /// The frame uniforms for rendering the whole image at `width`×`height`.
+    /// The frame parameters for rendering the whole image at `width`×`height`.
     pub fn frame(&self, width: u32, height: u32) -> GpuFrame {
         let s = &self.scene.render;
         let mut f = camera::frame(&self.scene.camera, width, height);

@@ -423,7 +423,7 @@ impl Viewer {
         }
     }
 
-    /// The frame uniforms of the current view at `w`×`h` (one sample per pass).
+    /// The frame parameters of the current view at `w`×`h` (one sample per pass).
     fn frame(&self, w: u32, h: u32) -> GpuFrame {
         let mut f = self.prep.frame(w, h);
         let c = crate::render::camera::frame(&self.camera.to_camera(), w, h);

@@ -109,25 +109,15 @@ impl GpuContext {
         adapter_info: wgpu::AdapterInfo,
     ) -> Result<Self, GpuError> {
         let limits = device.limits();
-        if limits.max_storage_buffers_per_shader_stage < 12 {
+        if limits.max_storage_buffers_per_shader_stage < 13 {
             return Err(GpuError::Device(format!(
-                "strahl needs 12 storage buffers per shader stage, this device offers {}",
+                "strahl needs 13 storage buffers per shader stage, this device offers {}",
                 limits.max_storage_buffers_per_shader_stage
             )));
         }
         let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let uniform = wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let mut scene_entries = vec![uniform];
-        scene_entries.extend((1..=9).map(|b| storage_entry(b, true)));
+        // Binding 0 is the frame: storage, not uniform (see shaders/bindings.wgsl).
+        let scene_entries: Vec<_> = (0..=9).map(|b| storage_entry(b, true)).collect();
         let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),
             entries: &scene_entries,
@@ -274,8 +264,8 @@ impl GpuContext {
     }
 }
 
-/// A scene's storage buffers on the device (bind group 0, without the frame uniform's
-/// contents, which change per dispatch).
+/// A scene's storage buffers on the device (bind group 0, without the frame's contents, which
+/// change per dispatch).
 pub struct SceneBuffers {
     pub key: FeatureKey,
     pub frame: wgpu::Buffer,
@@ -301,7 +291,7 @@ impl SceneBuffers {
         let frame = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
             size: std::mem::size_of::<GpuFrame>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: frame.as_entire_binding() }];

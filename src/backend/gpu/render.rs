@@ -274,8 +274,8 @@ pub fn record_pass(
             flags: (frame.flags & !FRAME_ACCUMULATE) | if accumulate { FRAME_ACCUMULATE } else { 0 },
             ..*frame
         };
-        // Each tile needs its own uniforms: a small per-tile buffer copied into the frame
-        // uniform right before its dispatch, in command order.
+        // Each tile needs its own frame: a small per-tile buffer copied into the frame buffer
+        // right before its dispatch, in command order.
         let staging = wgpu::util::DeviceExt::create_buffer_init(
             &ctx.device,
             &wgpu::util::BufferInitDescriptor {

@@ -263,6 +263,23 @@ mod tests {
         assert!(text.len() * 2 < all_text.len(), "{} vs {} bytes", text.len(), all_text.len());
     }
 
+    /// lavapipe 22 leaks a compiled shader per pipeline bind when a uniform steers control
+    /// flow (shaders/bindings.wgsl): no program binds a uniform buffer.
+    #[test]
+    fn no_program_binds_a_uniform_buffer() {
+        for p in [Program::Render, Program::Path, Program::Trace, Program::View] {
+            let key = FeatureKey::ALL.for_program(p);
+            let m = compose(p, key).unwrap();
+            let uniforms: Vec<_> = m
+                .global_variables
+                .iter()
+                .filter(|(_, g)| g.space == naga::AddressSpace::Uniform)
+                .map(|(_, g)| g.name.clone())
+                .collect();
+            assert!(uniforms.is_empty(), "{p:?} binds uniforms {uniforms:?}");
+        }
+    }
+
     /// Every struct the host writes into a GPU buffer has, in the composed WGSL module, the
     /// size and member offsets of its Rust twin (as naga's layouter computes them).
     #[test]

@@ -45,7 +45,7 @@ pub fn trace(
     let entry = if all { "trace_count" } else { "trace_nearest" };
     let first = ctx.pipeline(Program::Trace, key, entry)?;
     let write_all = if all { Some(ctx.pipeline(Program::Trace, key, "trace_all")?) } else { None };
-    // The trace program reads no frame fields, but the uniform must hold valid data.
+    // The trace program reads no frame fields, but the frame buffer must hold valid data.
     ctx.queue.write_buffer(&scene.frame, 0, bytemuck::bytes_of(&GpuFrame::default()));
     let limit = ctx.max_binding_bytes();
     let max_batch =
