@@ -118,6 +118,26 @@ fn lecture_example_is_bit_exact_on_gpu() {
     assert_eq!((nearest[0][0].t, nearest[0][0].tag.object), (3.0, 0));
 }
 
+/// Empty results read back cleanly from every trace kernel: no rays at all, a batch in which
+/// no ray hits anything (zero hit records in --all mode), and spawned-ray pairs of none.
+#[test]
+fn zero_size_results_read_back_from_every_kernel() {
+    let Some(ctx) = gpu() else { return };
+    let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/lecture.toml")).unwrap();
+    let prep = Prepared::new(scene.clone());
+    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+    let miss =
+        RayQuery { origin: V3::new(0.0, 20.0, 0.0), dir: V3::new(0.0, 0.0, 1.0), tmin: 0.0, tmax: f64::INFINITY };
+    for all in [false, true] {
+        assert!(trace(&ctx, &buffers, &[], all).unwrap().is_empty(), "no rays, all = {all}");
+        let got = trace(&ctx, &buffers, &[miss, miss], all).unwrap();
+        assert_eq!(got, cpu::trace::<f32>(&scene, &[miss, miss], all), "all = {all}");
+        assert_eq!(got, vec![Vec::new(), Vec::new()]);
+    }
+    let spawn = strahl::backend::gpu::trace::trace_spawn(&ctx, &buffers, &[]).unwrap();
+    assert!(spawn.is_empty());
+}
+
 /// Images: at least 99.9 % of pixels within one 8-bit code per channel, and a mean FLIP
 /// below 0.005. FLIP is about 0.05 where a difference first becomes noticeable at a glance
 /// (Andersson et al. 2020); a handful of edge pixels flipping between two surfaces gives a

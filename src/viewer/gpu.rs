@@ -450,8 +450,7 @@ impl ViewRenderer {
     /// Sum of sample values and per-pixel sample counts → the mean image (linear).
     pub fn read_mean(&self) -> Result<Image, GpuError> {
         let target = self.target.as_ref().ok_or_else(|| GpuError::Wgpu("no image yet".into()))?;
-        let bytes = self.ctx.read_buffer(&target.accum, target.accum.size())?;
-        let px: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+        let px: Vec<[f32; 4]> = self.ctx.read_pod(&target.accum, (target.accum.size() / 16) as usize)?;
         let band = target.band();
         let mut img = Image::new(target.width, target.height);
         for y in 0..target.height {

@@ -240,8 +240,18 @@ impl GpuContext {
         }))
     }
 
-    /// Copies `size` bytes of `src` to the host (blocking).
+    /// Copies the first `count` elements of `src`, an array of `T`, to the host (blocking).
+    /// The bytes land in a `Vec<T>`, aligned for `T`; `count` may be 0.
+    pub fn read_pod<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>, GpuError> {
+        let bytes = self.read_buffer(src, (count * std::mem::size_of::<T>()) as u64)?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
+    }
+
+    /// Copies `size` bytes of `src` to the host (blocking); nothing for `size` 0.
     pub fn read_buffer(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
+        if size == 0 {
+            return Ok(Vec::new());
+        }
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
             size,

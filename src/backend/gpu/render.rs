@@ -108,8 +108,7 @@ pub fn render(
             step += 1;
             progress(step, total_steps);
         }
-        let bytes = ctx.read_buffer(&output, rows as u64 * row_bytes)?;
-        let px: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+        let px: Vec<[f32; 4]> = ctx.read_pod(&output, rows as usize * w as usize)?;
         let spp = frame.spp as f32;
         for (i, p) in px.iter().enumerate() {
             img.pixels[row0 as usize * w as usize + i] = [p[0] / spp, p[1] / spp, p[2] / spp];
@@ -197,8 +196,7 @@ impl Progressive {
         if self.samples == 0 {
             return Ok(img);
         }
-        let bytes = self.ctx.read_buffer(&self.output, self.output.size())?;
-        let px: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+        let px: Vec<[f32; 4]> = self.ctx.read_pod(&self.output, img.pixels.len())?;
         let k = 1.0 / self.samples as f32;
         for (p, s) in img.pixels.iter_mut().zip(px) {
             *p = [s[0] * k, s[1] * k, s[2] * k];
@@ -339,8 +337,7 @@ impl Timer {
 
     /// Total nanoseconds of the `passes` dispatches just submitted.
     pub fn read(&self, ctx: &GpuContext, passes: u32) -> Result<f64, GpuError> {
-        let bytes = ctx.read_buffer(&self.resolve, passes as u64 * 16)?;
-        let ts: &[u64] = bytemuck::cast_slice(&bytes);
+        let ts: Vec<u64> = ctx.read_pod(&self.resolve, 2 * passes as usize)?;
         Ok(ts.chunks(2).map(|p| p[1].saturating_sub(p[0]) as f64 * self.period_ns).sum())
     }
 }
