@@ -13,6 +13,7 @@ pub mod converge;
 pub mod geometry;
 pub mod gpu_types;
 pub mod image;
+pub mod input;
 pub mod math;
 pub mod metrics;
 pub mod primitives;
