@@ -5,7 +5,8 @@
 //! lavapipe's JIT compiles), each in a child process whose Mesa shader disk cache is an empty
 //! folder so that nothing compiled before is reused; and frame time (median of `--frames` renders after the first), then the CPU
 //! backend's frame time for scale. Ratios are measured in one run: compare them, not the
-//! absolute times, across machines.
+//! absolute times, across machines. Without a Vulkan adapter it says so and measures the CPU
+//! alone.
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -87,43 +88,28 @@ fn bench(a: BenchArgs) -> Result<()> {
     } else {
         a.scenes.clone()
     };
-    let ctx = GpuContext::new()?;
-    println!("adapter: {}", ctx.adapter_name());
+    // Without a Vulkan adapter only the CPU backend is measured.
+    let ctx = match GpuContext::new() {
+        Ok(ctx) => {
+            println!("adapter: {}", ctx.adapter_name());
+            Some(ctx)
+        }
+        Err(e) => {
+            eprintln!("gpu backend unavailable ({e}); measuring the cpu only");
+            println!("adapter: none (no GPU measured)");
+            None
+        }
+    };
     let mut rows = Vec::new();
     for path in &scenes {
         let prep = Prepared::new(Scene::load(path)?);
         let (w, h) = (a.width.unwrap_or(prep.scene.image.width), a.height.unwrap_or(prep.scene.image.height));
+        super::check_image_size(w, h, a.width.is_some() || a.height.is_some())?;
         let frame = prep.frame(w, h);
         let rays = w as f64 * h as f64 * frame.spp as f64;
-        let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let mut variants = vec![("specialised", buffers.key)];
-        if buffers.key != FeatureKey::ALL {
-            if !buffers.runs_with(FeatureKey::ALL) {
-                bail!("{name}: the all-features shader needs a scene with a BVH");
-            }
-            variants.push(("all features", FeatureKey::ALL));
-        }
-        for (variant, key) in variants {
-            let compile = compile_in_child(path, key)?;
-            first_dispatch(&ctx, &buffers, &prep, key)?;
-            let mut times = Vec::new();
-            for i in 0..=a.frames {
-                let (_, stats) = render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, key, &|_, _| {})?;
-                if i > 0 {
-                    times.push(stats.gpu_time.unwrap_or(stats.wall));
-                }
-            }
-            times.sort();
-            let median = times[times.len() / 2];
-            rows.push(Row {
-                scene: name.clone(),
-                variant: variant.into(),
-                key: key.label(),
-                compile,
-                frame: median,
-                mrays: rays / median.as_secs_f64() / 1e6,
-            });
+        if let Some(ctx) = &ctx {
+            rows.extend(gpu_rows(ctx, path, &prep, &frame, &name, a.frames)?);
         }
         let start = Instant::now();
         strahl::backend::cpu::render(&prep, &frame, strahl::scene::RenderMode::Whitted, &|_| {});
@@ -137,11 +123,11 @@ fn bench(a: BenchArgs) -> Result<()> {
             mrays: rays / cpu.as_secs_f64() / 1e6,
         });
     }
-    println!(
-        "frame time: {} of GPU time{}",
-        if ctx.timestamps { "median" } else { "median wall time" },
-        if ctx.timestamps { " (timestamp queries)" } else { "" }
-    );
+    match &ctx {
+        Some(c) if c.timestamps => println!("frame time: median GPU time (timestamp queries); cpu: wall time"),
+        Some(_) => println!("frame time: median wall time; cpu: wall time"),
+        None => println!("frame time: wall time of one cpu render"),
+    }
     println!("| scene | variant | compile s | frame ms | M primary rays/s | features |");
     println!("|---|---|---|---|---|---|");
     for r in &rows {
@@ -166,4 +152,49 @@ fn bench(a: BenchArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The GPU rows of one scene (rendered as `frame`, `rays` primary rays a frame): its
+/// specialised shader and, unless that is it, the all-features shader, each with its compile
+/// time and median frame time.
+fn gpu_rows(
+    ctx: &GpuContext,
+    path: &std::path::Path,
+    prep: &Prepared,
+    frame: &strahl::gpu_types::GpuFrame,
+    name: &str,
+    frames: u32,
+) -> Result<Vec<Row>> {
+    let rays = frame.width as f64 * frame.height as f64 * frame.spp as f64;
+    let buffers = SceneBuffers::upload(ctx, &prep.gpu)?;
+    let mut variants = vec![("specialised", buffers.key)];
+    if buffers.key != FeatureKey::ALL {
+        if !buffers.runs_with(FeatureKey::ALL) {
+            bail!("{name}: the all-features shader needs a scene with a BVH");
+        }
+        variants.push(("all features", FeatureKey::ALL));
+    }
+    let mut rows = Vec::new();
+    for (variant, key) in variants {
+        let compile = compile_in_child(path, key)?;
+        first_dispatch(ctx, &buffers, prep, key)?;
+        let mut times = Vec::new();
+        for i in 0..=frames {
+            let (_, stats) = render(ctx, &buffers, frame, strahl::scene::RenderMode::Whitted, key, &|_, _| {})?;
+            if i > 0 {
+                times.push(stats.gpu_time.unwrap_or(stats.wall));
+            }
+        }
+        times.sort();
+        let median = times[times.len() / 2];
+        rows.push(Row {
+            scene: name.to_string(),
+            variant: variant.into(),
+            key: key.label(),
+            compile,
+            frame: median,
+            mrays: rays / median.as_secs_f64() / 1e6,
+        });
+    }
+    Ok(rows)
 }

@@ -631,11 +631,10 @@ impl Viewer {
         let path = PathBuf::from(self.save_path.trim());
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         let result: Result<()> = match ext.as_deref() {
-            Some("png") => self
-                .gpu
-                .read_display()
-                .map_err(anyhow::Error::from)
-                .and_then(|img| Ok(image::DynamicImage::ImageRgba8(img).to_rgb8().save(&path)?)),
+            Some("png") => self.gpu.read_display().map_err(anyhow::Error::from).and_then(|img| {
+                let rgb = image::DynamicImage::ImageRgba8(img).to_rgb8();
+                crate::image::save_encoded(&rgb, image::ImageFormat::Png, &path)
+            }),
             Some("exr") => self.gpu.read_mean().map_err(anyhow::Error::from).and_then(|img| img.save(&path)),
             _ => Err(anyhow!("use a .png (what the window shows) or .exr (linear values) file name")),
         };
@@ -909,10 +908,8 @@ fn diff_colour(d: u8) -> [u8; 3] {
 fn save_screenshot(img: &egui::ColorImage, path: &Path) -> Result<()> {
     let [w, h] = img.size;
     let rgb: Vec<u8> = img.pixels.iter().flat_map(|c| [c.r(), c.g(), c.b()]).collect();
-    image::RgbImage::from_raw(w as u32, h as u32, rgb)
-        .context("screenshot size")?
-        .save(path)
-        .with_context(|| format!("writing {}", path.display()))
+    let img = image::RgbImage::from_raw(w as u32, h as u32, rgb).context("screenshot size")?;
+    crate::image::save_encoded(&img, image::ImageFormat::Png, path)
 }
 
 impl eframe::App for Viewer {
