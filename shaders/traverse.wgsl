@@ -7,7 +7,7 @@
 
 #import strahl::types::{INDEX_BITS, INDEX_MASK, KIND_SPHERE, KIND_CYLINDER, KIND_TRIANGLE, KIND_PLANE}
 #ifdef BVH
-#import strahl::types::BvhNode
+#import strahl::types::{BvhNode, F32_MAX}
 #endif
 #ifdef BVH
 #import strahl::bindings::{nodes, prim_refs}
@@ -190,24 +190,27 @@ fn offer_nearest(best: ptr<function, Nearest>, r: u32, o: vec3<f32>, d: vec3<f32
 }
 
 #ifdef BVH
-// 1/d with zero (and tiny) components replaced by +-1e-30 (see accel::traverse::safe_inverse).
+// 1/d, with components below 1e-30 in magnitude (the ray runs parallel to that axis) set to 0,
+// which slab() takes apart (see accel::traverse::safe_inverse).
 fn safe_inverse(d: vec3<f32>) -> vec3<f32> {
-    let tiny = 1e-30;
-    let fixed = select(d, select(vec3<f32>(tiny), vec3<f32>(-tiny), d < vec3<f32>(0.0)), abs(d) < vec3<f32>(tiny));
-    return vec3<f32>(1.0) / fixed;
+    return select(vec3<f32>(1.0) / d, vec3<f32>(0.0), abs(d) < vec3<f32>(1e-30));
 }
 
 // Entry distance of the ray into the node's box within [tmin, tmax], or -1.
 fn slab(n: BvhNode, o: vec3<f32>, inv: vec3<f32>, tmin: f32, tmax: f32) -> f32 {
-    // Per axis as accel::traverse::slab; no operand is NaN (safe_inverse), so min/max
-    // over the axes choose exactly what its comparisons choose.
+    // Per axis as accel::traverse::slab. A parallel axis (inv 0) bounds nothing while the
+    // origin lies within the box on it and rules the box out otherwise; its lanes of t0 and t1
+    // (0, or NaN from an overflowed gap) are replaced before min/max, so no operand of those is
+    // NaN and they choose exactly what the comparisons there choose.
     let t0 = (n.bmin - o) * inv;
     let t1 = (n.bmax - o) * inv;
-    let lo = min(t0, t1);
-    let hi = max(t0, t1) * SLAB_GROW;
+    let parallel = inv == vec3<f32>(0.0);
+    let lo = select(min(t0, t1), vec3<f32>(-F32_MAX), parallel);
+    let hi = select(max(t0, t1) * SLAB_GROW, vec3<f32>(F32_MAX), parallel);
+    let outside = parallel & ((o < n.bmin) | (o > n.bmax));
     let tnear = max(tmin, max(lo.x, max(lo.y, lo.z)));
     let tfar = min(tmax, min(hi.x, min(hi.y, hi.z)));
-    if tnear <= tfar {
+    if tnear <= tfar && !any(outside) {
         return tnear;
     }
     return -1.0;

@@ -211,6 +211,20 @@ mod tests {
         assert_eq!((r[0].tmin, r[0].tmax), (0.0, 5.0));
     }
 
+    /// Huge and tiny (finite, non-zero) directions are scaled before they are normalised: their
+    /// squared length overflowed to infinity or underflowed to zero, and they were refused.
+    #[test]
+    fn extreme_directions_are_normalised() {
+        let r =
+            parse_rays("ox,oy,oz,dx,dy,dz\n0,0,0,1e308,1e308,1e308\n0,0,0,0,0,1e-300\n0,0,0,-5e-324,0,0\n", "r.csv")
+                .unwrap();
+        let third = 1.0 / 3f64.sqrt();
+        assert!((r[0].dir - V3::splat(third)).abs().max_component() < 1e-15, "{:?}", r[0].dir);
+        assert_eq!(r[1].dir, V3::new(0.0, 0.0, 1.0));
+        assert_eq!(r[2].dir, V3::new(-1.0, 0.0, 0.0));
+        assert!(parse_rays("ox,oy,oz,dx,dy,dz\n0,0,0,0,-0,0\n", "r.csv").is_err());
+    }
+
     #[test]
     fn bad_rows_name_file_line_and_column() {
         let cases = [
