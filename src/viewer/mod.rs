@@ -456,7 +456,7 @@ impl Viewer {
                         (corner - eye).length()
                     })
                     .fold(0.0, f64::max);
-                (near as f32, far.max(near + 1e-6) as f32)
+                (near as f32, far.max(near * (1.0 + 1e-6)).max(f64::from(f32::MIN_POSITIVE)) as f32)
             }
             None => (0.0, (10.0 * self.camera.distance()) as f32),
         }
@@ -493,7 +493,8 @@ impl Viewer {
             (i.unstable_dt.min(0.1) as f64, down, i.modifiers.shift, i.key_pressed(Key::R))
         });
         if down != [0.0; 3] {
-            let speed = self.camera.distance().max(1e-3) * 0.6 * if fast { 4.0 } else { 1.0 } * dt;
+            // In scene units per second, relative to the view: a scene's scale does not matter.
+            let speed = self.camera.distance() * 0.6 * if fast { 4.0 } else { 1.0 } * dt;
             self.camera.fly(down[0] * speed, down[1] * speed, down[2] * speed);
             ctx.request_repaint();
         }
