@@ -1,16 +1,22 @@
 // Path tracing entry point, one sample per pixel per dispatch: twin of src/render/path.rs
 // (next-event estimation with MIS by the power heuristic, Russian roulette from rr_depth
-// segments on; max_depth counts segments as Mitsuba does). Random numbers are drawn in the same
-// order as there: three for the light sample at every vertex, three for the BSDF, one for
-// Russian roulette when it applies.
+// segments on; max_depth counts segments as Mitsuba does; point and directional lights evaluated
+// at every vertex). Random numbers are drawn in the same order as there: three for the area-light
+// sample at every vertex, three for the BSDF, one for Russian roulette when it applies.
 #import strahl::types::{FRAME_ACCUMULATE, MAT_EMISSIVE, KIND_TRIANGLE, KIND_SPHERE, INDEX_BITS, F32_MAX}
 #import strahl::bindings::{frame, materials}
+#ifdef LIGHTS
+#import strahl::bindings::lights
+#endif
 #import strahl::traverse::{nearest_hit, prim_normal, prim_tag}
 #import strahl::spawn::spawn_origin
 #import strahl::raygen::{tile_pixel, output_index, ray_through}
 #import strahl::sampler::{sampler_new, next_f32, uniform3, pixel_jitter}
 #import strahl::bsdf::{bsdf_sample, bsdf_eval, is_specular}
 #import strahl::emitters::{sample_light, area_pdf, emitted_cos}
+#ifdef LIGHTS
+#import strahl::emitters::delta_light
+#endif
 
 @group(1) @binding(0) var<storage, read_write> output: array<vec4<f32>>;
 
@@ -74,15 +80,30 @@ fn path_radiance(origin: vec3<f32>, dir: vec3<f32>, rng: ptr<function, u32>) -> 
                     let so = spawn_origin(o, d, hit.t, ns);
                     let blocker = nearest_hit(so, ls.dir, 0.0, ls.dist * SHADOW_REACH);
                     if !blocker.found {
-                        var w = 1.0;
-                        if !ls.delta {
-                            w = power_heuristic(ls.pdf, ev.pdf);
-                        }
-                        sum += beta * ev.f_cos * ls.value * w;
+                        sum += beta * ev.f_cos * ls.value * power_heuristic(ls.pdf, ev.pdf);
                     }
                 }
             }
         }
+#ifdef LIGHTS
+        // Point and directional lights, each at every vertex (render::path: chosen by power
+        // with the area lights, one could be starved).
+        if !is_specular(m) {
+            let p = o + d * hit.t;
+            for (var i = 0u; i < frame.num_lights; i += 1u) {
+                let dl = delta_light(lights[i], p);
+                if dl.valid {
+                    let ev = bsdf_eval(m, wo, dl.dir, ns);
+                    if max3(ev.f_cos) > 0.0 {
+                        let so = spawn_origin(o, d, hit.t, ns);
+                        if !nearest_hit(so, dl.dir, 0.0, dl.dist * SHADOW_REACH).found {
+                            sum += beta * ev.f_cos * dl.value;
+                        }
+                    }
+                }
+            }
+        }
+#endif
         let bs = bsdf_sample(m, wo, ns, front, uniform3(rng));
         if !bs.valid {
             break;

@@ -136,7 +136,6 @@ const LIGHT_DIRECTIONAL: u32 = 1u;
 const LIGHT_STAND_IN: u32 = 1u;
 const MATERIAL_TWO_SIDED: u32 = 1u;
 const EMITTER_AREA: u32 = 0u;
-const EMITTER_LIGHT: u32 = 1u;
 
 const FRAME_ACCUMULATE: u32 = 1u;
 const QUERY_FOUND: u32 = 1u;

@@ -94,18 +94,17 @@ pub struct GpuLight {
 /// area lights); path mode samples the object itself and skips it.
 pub const LIGHT_STAND_IN: u32 = 1;
 
-/// Emitter kind: an emissive triangle or sphere, `prim` its [`crate::primitives::PrimRef`].
+/// Emitter kind: an emissive triangle or sphere, `prim` its [`crate::primitives::PrimRef`]
+/// (the only kind: point and directional lights are evaluated at every vertex, not chosen).
 pub const EMITTER_AREA: u32 = 0;
-/// Emitter kind: a point or directional light, `prim` its index in the lights buffer.
-pub const EMITTER_LIGHT: u32 = 1;
 
-/// One light source path mode samples for next-event estimation, chosen with probability
-/// `pdf` (proportional to its power) by inverting the cumulative `cdf`.
+/// One area light path mode samples for next-event estimation, chosen with probability `pdf`
+/// (proportional to its power) by inverting the cumulative `cdf`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuEmitter {
     pub prim: u32,
-    /// [`EMITTER_AREA`] or [`EMITTER_LIGHT`].
+    /// [`EMITTER_AREA`].
     pub kind: u32,
     /// Σ pdf of this emitter and those before it (the last is 1).
     pub cdf: f32,
@@ -169,7 +168,7 @@ pub struct GpuScene {
     pub prim_refs: Vec<u32>,
     pub materials: Vec<GpuMaterial>,
     pub lights: Vec<GpuLight>,
-    /// Path mode's light sources: emissive triangles and spheres, point and directional lights.
+    /// Path mode's sampled light sources: emissive triangles and spheres.
     pub emitters: Vec<GpuEmitter>,
     /// 1 / Σ emitter weights ([`GpuFrame::emitter_norm`]); 0 without emitters.
     pub emitter_norm: f32,
@@ -267,7 +266,7 @@ impl GpuScene {
             emitter_norm: 0.0,
         };
         g.lights.extend(crate::render::emitters::stand_in_lights(scene));
-        let (emitters, norm) = crate::render::emitters::build_emitters(&g, bvh);
+        let (emitters, norm) = crate::render::emitters::build_emitters(&g);
         g.emitters = emitters;
         g.emitter_norm = norm;
         g

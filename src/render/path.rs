@@ -7,9 +7,11 @@
 //! k-th segment (by a BSDF sample or by a shadow ray) contributes while k ≤ max_depth, so 1
 //! shows emitters only and 2 is direct lighting.
 //!
-//! Both backends consume the random stream in the same order: at every vertex three numbers
-//! for the light sample (drawn even where unused), three for the BSDF, and one for Russian
-//! roulette when it applies.
+//! Point and directional lights are evaluated at every non-specular vertex, each with a
+//! shadow ray (see [`super::emitters`] for why they are not chosen by power); they use no
+//! random numbers. Both backends consume the random stream in the same order: at every vertex
+//! three numbers for the area-light sample (drawn even where unused), three for the BSDF, and
+//! one for Russian roulette when it applies.
 
 use super::bsdf::{self, is_specular};
 use super::camera::ray_through;
@@ -93,8 +95,20 @@ pub fn radiance(inp: &ShadeInputs, mut ray: Ray<f32>, rng: &mut Sampler) -> V3<f
                 let origin = spawn_origin(&ray, hit.t, ns);
                 let shadow = Ray::new(origin, ls.dir);
                 if traverse::nearest(inp.bvh, inp.prims, &shadow, 0.0, ls.dist * SHADOW_REACH).is_none() {
-                    let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
-                    sum += beta.mul_elem(fc).mul_elem(ls.value) * w;
+                    sum += beta.mul_elem(fc).mul_elem(ls.value) * power_heuristic(ls.pdf, pdf);
+                }
+            }
+        }
+        if !is_specular(m) {
+            let p = ray.at(hit.t);
+            for l in &g.lights[..f.num_lights as usize] {
+                let Some(ls) = emitters::delta_light(l, p) else { continue };
+                let (fc, _) = bsdf::eval(m, wo, ls.dir, ns);
+                if fc.max_component() > 0.0 {
+                    let shadow = Ray::new(spawn_origin(&ray, hit.t, ns), ls.dir);
+                    if traverse::nearest(inp.bvh, inp.prims, &shadow, 0.0, ls.dist * SHADOW_REACH).is_none() {
+                        sum += beta.mul_elem(fc).mul_elem(ls.value);
+                    }
                 }
             }
         }
