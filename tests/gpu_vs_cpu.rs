@@ -118,14 +118,19 @@ fn lecture_example_is_bit_exact_on_gpu() {
     assert_eq!((nearest[0][0].t, nearest[0][0].tag.object), (3.0, 0));
 }
 
+/// A shipped scene and its buffers on `ctx`.
+fn shipped_on(ctx: &GpuContext, name: &str) -> (Scene, SceneBuffers) {
+    let scene = Scene::load(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes").join(name)).unwrap();
+    let buffers = SceneBuffers::upload(ctx, &Prepared::new(scene.clone()).gpu).unwrap();
+    (scene, buffers)
+}
+
 /// Empty results read back cleanly from every trace kernel: no rays at all, a batch in which
 /// no ray hits anything (zero hit records in --all mode), and spawned-ray pairs of none.
 #[test]
 fn zero_size_results_read_back_from_every_kernel() {
     let Some(ctx) = gpu() else { return };
-    let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/lecture.toml")).unwrap();
-    let prep = Prepared::new(scene.clone());
-    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+    let (scene, buffers) = shipped_on(&ctx, "lecture.toml");
     let miss =
         RayQuery { origin: V3::new(0.0, 20.0, 0.0), dir: V3::new(0.0, 0.0, 1.0), tmin: 0.0, tmax: f64::INFINITY };
     for all in [false, true] {
@@ -171,9 +176,7 @@ fn a_ray_from_1e38_gives_the_same_rows_on_both_backends() {
 #[test]
 fn a_shared_edge_is_one_hit_on_both_backends() {
     let Some(ctx) = gpu() else { return };
-    let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/seed.toml")).unwrap();
-    let prep = Prepared::new(scene.clone());
-    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+    let (scene, buffers) = shipped_on(&ctx, "seed.toml");
     let mut rng = Rng(5);
     let (a, b) = (V3::new(-30.0, -5.0, -20.0), V3::new(30.0, -5.0, 40.0));
     let (c, d) = (V3::new(-30.0, -5.0, 40.0), V3::new(30.0, -5.0, -20.0));

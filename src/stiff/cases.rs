@@ -803,6 +803,25 @@ pub fn acne_and_holes(reference: &crate::image::Image, test: &crate::image::Imag
         .count()
 }
 
+/// The Whitted image of `prep` on the robust `variant` (None for the textbook one, which
+/// renders nothing).
+fn render_on(
+    variant: Variant,
+    prep: &crate::render::Prepared,
+    frame: &crate::gpu_types::GpuFrame,
+    opt: &Options,
+) -> Result<Option<crate::image::Image>, GpuError> {
+    Ok(match variant {
+        Variant::Cpu => Some(crate::backend::cpu::render(prep, frame, RenderMode::Whitted, &|_| {})),
+        Variant::Gpu => {
+            let ctx = opt.gpu.expect("gpu");
+            let b = SceneBuffers::upload(ctx, &prep.gpu)?;
+            Some(crate::backend::gpu::render::render(ctx, &b, frame, RenderMode::Whitted, b.key, &|_, _| {})?.0)
+        }
+        Variant::Textbook => None,
+    })
+}
+
 /// The scene translated by 1e5 must render as it does at the origin: no acne, no holes.
 pub fn far_from_origin(opt: &Options) -> Result<Vec<Row>, GpuError> {
     let near = crate::render::Prepared::new(scene_at(0.0));
@@ -814,15 +833,7 @@ pub fn far_from_origin(opt: &Options) -> Result<Vec<Row>, GpuError> {
     let mut rows = Vec::new();
     for variant in opt.variants() {
         let start = Instant::now();
-        let img = match variant {
-            Variant::Cpu => crate::backend::cpu::render(&far, &frame_far, RenderMode::Whitted, &|_| {}),
-            Variant::Gpu => {
-                let ctx = opt.gpu.expect("gpu");
-                let b = SceneBuffers::upload(ctx, &far.gpu)?;
-                crate::backend::gpu::render::render(ctx, &b, &frame_far, RenderMode::Whitted, b.key, &|_, _| {})?.0
-            }
-            Variant::Textbook => continue,
-        };
+        let Some(img) = render_on(variant, &far, &frame_far, opt)? else { continue };
         rows.push(Row {
             case: "scene translated by 1e5 (160x120 render vs at the origin)".into(),
             variant: Some(variant),
@@ -859,15 +870,7 @@ pub fn scaled_scenes(opt: &Options) -> Result<Vec<Row>, GpuError> {
         let frame = prep.frame(w, h);
         for variant in opt.variants() {
             let start = Instant::now();
-            let img = match variant {
-                Variant::Cpu => crate::backend::cpu::render(&prep, &frame, RenderMode::Whitted, &|_| {}),
-                Variant::Gpu => {
-                    let ctx = opt.gpu.expect("gpu");
-                    let b = SceneBuffers::upload(ctx, &prep.gpu)?;
-                    crate::backend::gpu::render::render(ctx, &b, &frame, RenderMode::Whitted, b.key, &|_, _| {})?.0
-                }
-                Variant::Textbook => continue,
-            };
+            let Some(img) = render_on(variant, &prep, &frame, opt)? else { continue };
             rows.push(Row {
                 case: format!("scene scaled by {s:e} ({w}x{h} render vs at scale 1)"),
                 variant: Some(variant),
