@@ -10,7 +10,7 @@
 
 #import strahl::types::{Frame, Material, Light, Emitter}
 #ifdef BVH
-#import strahl::types::BvhNode
+#import strahl::types::Node
 #endif
 #ifdef SPHERES
 #import strahl::types::Sphere
@@ -22,7 +22,7 @@
 #import strahl::types::Plane
 #endif
 #ifdef TRIANGLES
-#import strahl::types::Triangle
+#import strahl::types::{Triangle, LeafTriangle}
 #endif
 
 @group(0) @binding(0) var<storage, read> frame: Frame;
@@ -39,8 +39,20 @@
 @group(0) @binding(4) var<storage, read> triangles: array<Triangle>;
 #endif
 #ifdef BVH
-@group(0) @binding(5) var<storage, read> nodes: array<BvhNode>;
-@group(0) @binding(6) var<storage, read> prim_refs: array<u32>;
+// With LOAD64 the nodes and leaf triangles are read as 64-bit words (strahl::traverse::fetch_node).
+#ifdef LOAD64
+@group(0) @binding(5) var<storage, read> nodes: array<vec2<u64>>;
+#else
+@group(0) @binding(5) var<storage, read> nodes: array<Node>;
+#endif
+@group(0) @binding(6) var<storage, read> shape_refs: array<u32>;
+#ifdef TRIANGLES
+#ifdef LOAD64
+@group(0) @binding(10) var<storage, read> leaf_triangles: array<vec2<u64>>;
+#else
+@group(0) @binding(10) var<storage, read> leaf_triangles: array<LeafTriangle>;
+#endif
+#endif
 #endif
 @group(0) @binding(7) var<storage, read> materials: array<Material>;
 @group(0) @binding(8) var<storage, read> lights: array<Light>;

@@ -8,7 +8,7 @@
 #ifdef LIGHTS
 #import strahl::bindings::lights
 #endif
-#import strahl::traverse::{nearest_hit, prim_normal, prim_tag}
+#import strahl::traverse::{nearest_hit, hit_normal, hit_material}
 #import strahl::spawn::spawn_origin
 #import strahl::raygen::{tile_pixel, output_index, ray_through}
 #import strahl::sampler::{sampler_new, next_f32, uniform3, pixel_jitter}
@@ -49,8 +49,8 @@ fn path_radiance(origin: vec3<f32>, dir: vec3<f32>, rng: ptr<function, u32>) -> 
             sum += beta * frame.background;
             break;
         }
-        let m = materials[prim_tag(hit.prim).z];
-        let n = prim_normal(hit.prim, o, d, hit.t, hit.part);
+        let m = materials[hit_material(hit)];
+        let n = hit_normal(hit, o, d);
         let front = dot(d, n) < 0.0;
         let ns = select(-n, n, front);
 #ifdef EMISSIVE

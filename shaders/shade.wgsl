@@ -7,7 +7,7 @@
 
 #import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, LIGHT_POINT, F32_MAX}
 #import strahl::bindings::{frame, materials, lights}
-#import strahl::traverse::{nearest_hit, prim_normal, prim_tag}
+#import strahl::traverse::{nearest_hit, hit_normal, hit_material}
 #import strahl::spawn::spawn_origin
 #import strahl::raygen::primary_ray
 
@@ -60,13 +60,13 @@ fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec
         }
 #ifdef SHADOW_CROSSING
         // Dielectrics tint the shadow ray; emissive surfaces (lights) let it through.
-        let m = materials[prim_tag(hit.prim).z];
+        let m = materials[hit_material(hit)];
         if m.kind == MAT_DIELECTRIC {
             tr = tr * m.color;
         } else if m.kind != MAT_EMISSIVE {
             return vec3<f32>(0.0);
         }
-        let hn = prim_normal(hit.prim, origin, l, hit.t, hit.part);
+        let hn = hit_normal(hit, origin, l);
         let side = select(hn, -hn, dot(l, hn) < 0.0);
         origin = spawn_origin(origin, l, hit.t, side);
         remaining -= hit.t;
@@ -133,9 +133,8 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
             color += cur.weight * frame.background;
             continue;
         }
-        let tag = prim_tag(hit.prim);
-        let m = materials[tag.z];
-        let n = prim_normal(hit.prim, cur.origin, cur.dir, hit.t, hit.part);
+        let m = materials[hit_material(hit)];
+        let n = hit_normal(hit, cur.origin, cur.dir);
         let front = dot(cur.dir, n) < 0.0;
         let ns = select(-n, n, front);
         var handled = false;

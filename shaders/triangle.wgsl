@@ -51,9 +51,14 @@ fn edge_tie(e: f32, ex: f32, ey: f32) -> f32 {
 
 // Hit distance in (tmin, tmax), or -1 when missed.
 fn triangle_intersect(tri: Triangle, o: vec3<f32>, sh: Shear, tmin: f32, tmax: f32) -> f32 {
-    let a = tri.va - o;
-    let b = tri.vb - o;
-    let c = tri.vc - o;
+    return vertices_intersect(tri.va, tri.vb, tri.vc, o, sh, tmin, tmax);
+}
+
+// The same for the triangle (va, vb, vc).
+fn vertices_intersect(va: vec3<f32>, vb: vec3<f32>, vc: vec3<f32>, o: vec3<f32>, sh: Shear, tmin: f32, tmax: f32) -> f32 {
+    let a = va - o;
+    let b = vb - o;
+    let c = vc - o;
     let kx = sh.k.x;
     let ky = sh.k.y;
     let kz = sh.k.z;

@@ -64,11 +64,28 @@ struct Triangle {
     material: u32,
 }
 
-struct BvhNode {
-    bmin: vec3<f32>,
-    left_or_first: u32,
-    bmax: vec3<f32>,
-    count: u32,
+// A node of the BVH as the GPU walks it (accel::gpu_bvh::GpuNode): the boxes and links of
+// its two children.
+struct Node {
+    lo_a: vec3<f32>,
+    link_a: u32,
+    hi_a: vec3<f32>,
+    link_b: u32,
+    lo_b: vec3<f32>,
+    pad_a: u32,
+    hi_b: vec3<f32>,
+    pad_b: u32,
+}
+
+// A triangle in leaf order (accel::gpu_bvh::GpuLeafTriangle): vertices, its index in the
+// scene-order triangle array, its material.
+struct LeafTriangle {
+    va: vec3<f32>,
+    index: u32,
+    vb: vec3<f32>,
+    material: u32,
+    vc: vec3<f32>,
+    pad: u32,
 }
 
 struct Material {
@@ -111,6 +128,15 @@ struct QueryHit {
     prim_ref: u32,
     flags: u32,
 }
+
+// Child links of Node (accel::gpu_bvh): an inner node's index, or a leaf: LINK_LEAF, LINK_SHAPES
+// for spheres and cylinders (shape_refs) else triangles (leaf_triangles), count - 1 from bit
+// LINK_COUNT_SHIFT, first primitive in the low bits. LINK_EMPTY: no child / no node.
+const LINK_LEAF: u32 = #{LINK_LEAF}u;
+const LINK_SHAPES: u32 = #{LINK_SHAPES}u;
+const LINK_COUNT_SHIFT: u32 = #{LINK_COUNT_SHIFT}u;
+const LINK_FIRST_MASK: u32 = #{LINK_FIRST_MASK}u;
+const LINK_EMPTY: u32 = #{LINK_EMPTY}u;
 
 // PrimRef: kind in bits 30-31 (src/primitives.rs).
 const KIND_SPHERE: u32 = 0u;

@@ -6,7 +6,8 @@
 //! WGSL's `vec3<f32>` is 16-byte aligned with size 12: every `[f32; 3]` here is followed by a
 //! 4-byte field that fills the rest of its 16 bytes.
 
-use crate::accel::{Bvh, BvhNode};
+use crate::accel::Bvh;
+use crate::accel::gpu_bvh::{GpuBvh, GpuLeafTriangle, GpuNode};
 use crate::primitives::{Primitives, Tagged};
 use crate::scene::{Light, Scene};
 use bytemuck::{Pod, Zeroable};
@@ -164,8 +165,13 @@ pub struct GpuScene {
     pub cylinders: Vec<GpuCylinder>,
     pub planes: Vec<GpuPlane>,
     pub triangles: Vec<GpuTriangle>,
-    pub nodes: Vec<BvhNode>,
-    pub prim_refs: Vec<u32>,
+    /// The BVH as the GPU walks it ([`crate::accel::gpu_bvh`]); empty without bounded
+    /// primitives, or with more than [`crate::accel::gpu_bvh::MAX_PRIMS`] of them (which no GPU buffer holds).
+    pub nodes: Vec<GpuNode>,
+    /// Sphere and cylinder references in leaf order.
+    pub shape_refs: Vec<u32>,
+    /// Triangles in leaf order.
+    pub leaf_triangles: Vec<GpuLeafTriangle>,
     pub materials: Vec<GpuMaterial>,
     pub lights: Vec<GpuLight>,
     /// Path mode's sampled light sources: emissive triangles and spheres.
@@ -179,6 +185,11 @@ fn rgb(v: [f64; 3]) -> [f32; 3] {
 }
 
 impl GpuScene {
+    /// Spheres, cylinders and triangles: the primitives the BVH holds.
+    pub fn bounded_count(&self) -> usize {
+        self.spheres.len() + self.cylinders.len() + self.triangles.len()
+    }
+
     pub fn new(scene: &Scene, prims: &Primitives<f32>, bvh: &Bvh) -> Self {
         let tag = |t: &crate::primitives::Tag| (t.object, t.prim, t.material);
         let mut g = Self {
@@ -229,8 +240,9 @@ impl GpuScene {
                     material: t.material,
                 })
                 .collect(),
-            nodes: bvh.nodes.clone(),
-            prim_refs: bvh.prim_refs.iter().map(|r| r.0).collect(),
+            nodes: Vec::new(),
+            shape_refs: Vec::new(),
+            leaf_triangles: Vec::new(),
             materials: scene
                 .materials
                 .iter()
@@ -265,6 +277,9 @@ impl GpuScene {
             emitters: Vec::new(),
             emitter_norm: 0.0,
         };
+        if let Ok(tree) = GpuBvh::collapse(bvh, prims) {
+            (g.nodes, g.shape_refs, g.leaf_triangles) = (tree.nodes, tree.shape_refs, tree.triangles);
+        }
         g.lights.extend(crate::render::emitters::stand_in_lights(scene));
         let (emitters, norm) = crate::render::emitters::build_emitters(&g);
         g.emitters = emitters;

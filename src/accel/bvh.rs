@@ -34,7 +34,8 @@ pub struct Bvh {
     pub depth: u32,
 }
 
-/// Deepest tree the build makes; the WGSL traversal stack (`TRAVERSAL_STACK`) holds this many.
+/// Deepest tree the build makes; the traversal stacks hold this many (the GPU's more, for the
+/// levels [`super::gpu_bvh`] adds).
 pub const MAX_DEPTH: u32 = 48;
 const BINS: usize = 16;
 const MAX_LEAF: usize = 4;

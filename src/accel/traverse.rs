@@ -1,4 +1,6 @@
-//! BVH traversal; `shaders/traverse.wgsl` is its line-by-line twin.
+//! BVH traversal of the binary tree, as the CPU renderer runs it; the GPU walks the collapsed
+//! tree of [`super::gpu_bvh`] (whose walk is the twin of `shaders/traverse.wgsl`). Both return
+//! exactly what brute force returns.
 
 use super::bvh::{Bvh, BvhNode, MAX_DEPTH};
 use crate::math::{Ray, Real, V3};

@@ -9,6 +9,7 @@ pub mod trace;
 
 pub use shaders::{FeatureKey, Program};
 
+use crate::accel::gpu_bvh::MAX_PRIMS;
 use crate::gpu_types::{GpuFrame, GpuScene};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -29,6 +30,8 @@ pub enum GpuError {
     Shader(#[from] shaders::ShaderError),
     #[error("{what} needs {need} bytes, more than this adapter allows in one buffer ({limit} bytes)")]
     TooLarge { what: String, need: u64, limit: u64 },
+    #[error("the scene has {count} spheres, cylinders and triangles; the GPU's BVH layout indexes at most {limit}")]
+    TooManyPrimitives { count: usize, limit: usize },
     #[error("GPU error: {0}")]
     Wgpu(String),
 }
@@ -39,6 +42,8 @@ type PipelineKey = (Program, FeatureKey, &'static str);
 /// A compiled pipeline and what compiling it cost.
 pub struct CachedPipeline {
     pub pipeline: wgpu::ComputePipeline,
+    /// The variant compiled: the scene's key with the device's flags ([`FeatureKey::DEVICE`]).
+    pub key: FeatureKey,
     /// Composition (naga_oil) plus pipeline creation (driver compile).
     pub compile_time: Duration,
 }
@@ -50,6 +55,8 @@ pub struct GpuContext {
     pub limits: wgpu::Limits,
     /// Whether per-dispatch timestamp queries are available.
     pub timestamps: bool,
+    /// [`FeatureKey::DEVICE`] flags this device supports, added to every pipeline's key.
+    pub device_flags: u32,
     scene_layout: wgpu::BindGroupLayout,
     render_layout: wgpu::BindGroupLayout,
     trace_layout: wgpu::BindGroupLayout,
@@ -90,7 +97,8 @@ impl GpuContext {
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         wgpu::DeviceDescriptor {
             label: Some("strahl"),
-            required_features: if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() },
+            required_features: (if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() })
+                | (adapter.features() & wgpu::Features::SHADER_INT64),
             required_limits: adapter.limits(),
             ..Default::default()
         }
@@ -116,8 +124,10 @@ impl GpuContext {
             )));
         }
         let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let device_flags =
+            if device.features().contains(wgpu::Features::SHADER_INT64) { FeatureKey::LOAD64 } else { 0 };
         // Binding 0 is the frame: storage, not uniform (see shaders/bindings.wgsl).
-        let scene_entries: Vec<_> = (0..=9).map(|b| storage_entry(b, true)).collect();
+        let scene_entries: Vec<_> = (0..=10).map(|b| storage_entry(b, true)).collect();
         let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),
             entries: &scene_entries,
@@ -136,6 +146,7 @@ impl GpuContext {
             adapter_info,
             limits,
             timestamps,
+            device_flags,
             scene_layout,
             render_layout,
             trace_layout,
@@ -156,7 +167,7 @@ impl GpuContext {
         key: FeatureKey,
         entry: &'static str,
     ) -> Result<Arc<CachedPipeline>, GpuError> {
-        let key = key.for_program(program);
+        let key = self.variant(program, key);
         if let Some(p) = self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)) {
             return Ok(p.clone());
         }
@@ -184,7 +195,7 @@ impl GpuContext {
             compilation_options: Default::default(),
             cache: None,
         });
-        let cached = Arc::new(CachedPipeline { pipeline, compile_time: start.elapsed() });
+        let cached = Arc::new(CachedPipeline { pipeline, key, compile_time: start.elapsed() });
         self.pipelines.lock().expect("pipeline cache lock").insert((program, key, entry), cached.clone());
         Ok(cached)
     }
@@ -196,8 +207,13 @@ impl GpuContext {
         key: FeatureKey,
         entry: &'static str,
     ) -> Option<Arc<CachedPipeline>> {
-        let key = key.for_program(program);
+        let key = self.variant(program, key);
         self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)).cloned()
+    }
+
+    /// The variant of `program` this device compiles for a scene needing `key`.
+    pub fn variant(&self, program: Program, key: FeatureKey) -> FeatureKey {
+        FeatureKey(key.for_program(program).0 & !FeatureKey::DEVICE | self.device_flags)
     }
 
     /// The output bind group (group 1) of the render and view programs over `buffer`, an
@@ -287,16 +303,20 @@ pub struct SceneBuffers {
 
 impl SceneBuffers {
     pub fn upload(ctx: &GpuContext, g: &GpuScene) -> Result<Self, GpuError> {
+        if g.bounded_count() > MAX_PRIMS {
+            return Err(GpuError::TooManyPrimitives { count: g.bounded_count(), limit: MAX_PRIMS });
+        }
         let buffers = [
             ctx.storage_buffer("spheres", &g.spheres)?,
             ctx.storage_buffer("cylinders", &g.cylinders)?,
             ctx.storage_buffer("planes", &g.planes)?,
             ctx.storage_buffer("triangles", &g.triangles)?,
             ctx.storage_buffer("BVH nodes", &g.nodes)?,
-            ctx.storage_buffer("primitive references", &g.prim_refs)?,
+            ctx.storage_buffer("shape references", &g.shape_refs)?,
             ctx.storage_buffer("materials", &g.materials)?,
             ctx.storage_buffer("lights", &g.lights)?,
             ctx.storage_buffer("emitters", &g.emitters)?,
+            ctx.storage_buffer("leaf-order triangles", &g.leaf_triangles)?,
         ];
         let frame = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),

@@ -72,7 +72,7 @@ pub fn render(
     let max_tiles = tiles_x * band_rows.div_ceil(TILE);
     let timer = ctx.timestamps.then(|| Timer::new(ctx, max_tiles));
     let mut img = Image::new(w, h);
-    let mut stats = RenderStats { key, dispatches: 0, ..Default::default() };
+    let mut stats = RenderStats { key: pipe.key, dispatches: 0, ..Default::default() };
     let mut gpu_ns = 0.0f64;
     let total_steps = h.div_ceil(band_rows) as u64 * frame.spp as u64;
     let mut step = 0u64;

@@ -69,8 +69,11 @@ impl FeatureKey {
     pub const MIRROR: u32 = 1 << 7;
     pub const DIELECTRIC: u32 = 1 << 8;
     pub const EMISSIVE: u32 = 1 << 9;
-    pub const FLAG_COUNT: u32 = 10;
-    pub const NAMES: [&'static str; 10] = [
+    /// The device reads 64-bit words (`SHADER_INT64`): a flag of the device, not of the scene,
+    /// which [`GpuContext::pipeline`](super::GpuContext::pipeline) adds.
+    pub const LOAD64: u32 = 1 << 10;
+    pub const FLAG_COUNT: u32 = 11;
+    pub const NAMES: [&'static str; 11] = [
         "SPHERES",
         "CYLINDERS",
         "TRIANGLES",
@@ -81,11 +84,15 @@ impl FeatureKey {
         "MIRROR",
         "DIELECTRIC",
         "EMISSIVE",
+        "LOAD64",
     ];
+    /// Flags that describe the device rather than the scene.
+    pub const DEVICE: u32 = Self::LOAD64;
     /// Flags that change the trace program (it has no shading code).
-    pub const GEOMETRY: u32 = Self::SPHERES | Self::CYLINDERS | Self::TRIANGLES | Self::PLANES | Self::BVH;
-    /// Every feature: the one shader that renders any scene.
-    pub const ALL: FeatureKey = FeatureKey((1 << Self::FLAG_COUNT) - 1);
+    pub const GEOMETRY: u32 =
+        Self::SPHERES | Self::CYLINDERS | Self::TRIANGLES | Self::PLANES | Self::BVH | Self::DEVICE;
+    /// Every scene feature: the one shader that renders any scene.
+    pub const ALL: FeatureKey = FeatureKey(((1 << Self::FLAG_COUNT) - 1) & !Self::DEVICE);
 
     /// Scenes with at most this many bounded primitives test them all instead of walking a BVH.
     pub const BRUTE_FORCE_MAX: usize = 8;
@@ -101,7 +108,7 @@ impl FeatureKey {
         set(!g.cylinders.is_empty(), Self::CYLINDERS);
         set(!g.triangles.is_empty(), Self::TRIANGLES);
         set(!g.planes.is_empty(), Self::PLANES);
-        set(g.prim_refs.len() > Self::BRUTE_FORCE_MAX, Self::BVH);
+        set(g.bounded_count() > Self::BRUTE_FORCE_MAX, Self::BVH);
         set(g.lights.iter().any(|l| l.kind == LIGHT_POINT), Self::POINT_LIGHTS);
         set(g.lights.iter().any(|l| l.kind == LIGHT_DIRECTIONAL), Self::DIRECTIONAL_LIGHTS);
         let has = |m: MaterialKind| g.materials.iter().any(|x| x.kind == m as u32);
@@ -128,6 +135,7 @@ impl FeatureKey {
             .filter(|i| self.0 & (1 << i) != 0)
             .map(|i| (Self::NAMES[i as usize].to_string(), ShaderDefValue::Bool(true)))
             .collect();
+        defs.extend(SHARED_CONSTANTS.iter().map(|&(name, v)| (name.to_string(), ShaderDefValue::UInt(v))));
         if self.has(Self::POINT_LIGHTS | Self::DIRECTIONAL_LIGHTS) {
             defs.insert("LIGHTS".into(), ShaderDefValue::Bool(true));
         }
@@ -145,6 +153,24 @@ impl FeatureKey {
     }
 }
 
+/// What the shaders may use beyond core WGSL: 64-bit integers, in LOAD64 variants only (which
+/// run on devices with `SHADER_INT64`).
+const CAPABILITIES: naga::valid::Capabilities = naga::valid::Capabilities::SHADER_INT64;
+
+/// Values the shaders share with the host, passed to every variant as shader defs (`#{NAME}`
+/// in WGSL) so that they are written once, here.
+pub const SHARED_CONSTANTS: &[(&str, u32)] = {
+    use crate::accel::gpu_bvh as g;
+    &[
+        ("LINK_LEAF", g::LINK_LEAF),
+        ("LINK_SHAPES", g::LINK_SHAPES),
+        ("LINK_COUNT_SHIFT", g::LINK_COUNT_SHIFT),
+        ("LINK_FIRST_MASK", g::LINK_FIRST_MASK),
+        ("LINK_EMPTY", g::LINK_EMPTY),
+        ("GPU_STACK", g::MAX_DEPTH),
+    ]
+};
+
 #[derive(Debug, thiserror::Error)]
 pub enum ShaderError {
     #[error("composing {file}: {message}")]
@@ -158,6 +184,22 @@ fn compose_error(e: &ComposerError) -> String {
     format!("{e:?}")
 }
 
+/// The text of shader `file` (a path like `shaders/types.wgsl`): the one built into the binary,
+/// or, when the environment variable `STRAHL_SHADER_DIR` names a folder, the file of that name
+/// in it, so that shaders can be edited and measured without rebuilding.
+fn source_text(file: &str, built_in: &'static str) -> Result<std::borrow::Cow<'static, str>, ShaderError> {
+    match std::env::var_os("STRAHL_SHADER_DIR") {
+        None => Ok(built_in.into()),
+        Some(dir) => {
+            let name = std::path::Path::new(file).file_name().expect("shader paths name a file");
+            let path = std::path::Path::new(&dir).join(name);
+            std::fs::read_to_string(&path)
+                .map(Into::into)
+                .map_err(|e| ShaderError::Compose { file: path.display().to_string(), message: e.to_string() })
+        }
+    }
+}
+
 /// Composes `program` for `key` into a naga module.
 pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, ShaderError> {
     let key = key.for_program(program);
@@ -165,11 +207,12 @@ pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, Shader
     if program == Program::View {
         defs.insert("COUNT_VISITS".into(), ShaderDefValue::Bool(true));
     }
-    let mut composer = Composer::default();
+    let mut composer = Composer::default().with_capabilities(CAPABILITIES);
     for (file, src) in MODULES {
+        let src = source_text(file, src)?;
         composer
             .add_composable_module(ComposableModuleDescriptor {
-                source: src,
+                source: &src,
                 file_path: file,
                 language: ShaderLanguage::Wgsl,
                 shader_defs: defs.clone(),
@@ -178,9 +221,10 @@ pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, Shader
             .map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e) })?;
     }
     let (file, src) = program.source();
+    let src = source_text(file, src)?;
     composer
         .make_naga_module(NagaModuleDescriptor {
-            source: src,
+            source: &src,
             file_path: file,
             shader_type: ShaderType::Wgsl,
             shader_defs: defs,
@@ -195,7 +239,7 @@ pub fn validate(
     key: FeatureKey,
     module: &naga::Module,
 ) -> Result<naga::valid::ModuleInfo, ShaderError> {
-    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), CAPABILITIES)
         .validate(module)
         .map_err(|e| ShaderError::Validate { program, key: key.label(), message: format!("{:?}", e.into_inner()) })
 }
@@ -248,7 +292,7 @@ mod tests {
             "plane_roots",
             "refract",
             "fresnel",
-            "BvhNode",
+            "Node",
             "slab",
             "nodes",
         ];
@@ -284,7 +328,7 @@ mod tests {
     /// size and member offsets of its Rust twin (as naga's layouter computes them).
     #[test]
     fn wgsl_struct_layouts_equal_the_rust_structs() {
-        use crate::accel::BvhNode;
+        use crate::accel::gpu_bvh::{GpuLeafTriangle, GpuNode};
         use crate::gpu_types::*;
         use std::mem::{offset_of, size_of};
         macro_rules! layout {
@@ -325,7 +369,8 @@ mod tests {
             layout!("Cylinder", GpuCylinder, [pa, radius, pb, caps, object, prim, material]),
             layout!("Plane", GpuPlane, [point, object, normal, material]),
             layout!("Triangle", GpuTriangle, [va, object, vb, prim, vc, material]),
-            layout!("BvhNode", BvhNode, [bmin, left_or_first, bmax, count]),
+            layout!("Node", GpuNode, [lo_a, link_a, hi_a, link_b, lo_b, hi_b]),
+            layout!("LeafTriangle", GpuLeafTriangle, [va, index, vb, material, vc]),
             layout!("Material", GpuMaterial, [color, kind, radiance, ior, roughness, flags]),
             layout!("Light", GpuLight, [vector, kind, intensity, flags]),
             layout!("Emitter", GpuEmitter, [prim, kind, cdf, pdf]),
