@@ -8,7 +8,7 @@
 #ifdef LIGHTS
 #import strahl::bindings::lights
 #endif
-#import strahl::traverse::{nearest_hit, hit_normal, hit_material}
+#import strahl::traverse::{nearest_hit, occluded, hit_normal, hit_material}
 #import strahl::spawn::spawn_origin
 #import strahl::raygen::{tile_pixel, output_index, ray_through}
 #import strahl::sampler::{sampler_new, next_f32, uniform3, pixel_jitter}
@@ -78,8 +78,7 @@ fn path_radiance(origin: vec3<f32>, dir: vec3<f32>, rng: ptr<function, u32>) -> 
                 let ev = bsdf_eval(m, wo, ls.dir, ns);
                 if max3(ev.f_cos) > 0.0 {
                     let so = spawn_origin(o, d, hit.t, ns);
-                    let blocker = nearest_hit(so, ls.dir, 0.0, ls.dist * SHADOW_REACH);
-                    if !blocker.found {
+                    if !occluded(so, ls.dir, 0.0, ls.dist * SHADOW_REACH) {
                         sum += beta * ev.f_cos * ls.value * power_heuristic(ls.pdf, ev.pdf);
                     }
                 }
@@ -96,7 +95,7 @@ fn path_radiance(origin: vec3<f32>, dir: vec3<f32>, rng: ptr<function, u32>) -> 
                     let ev = bsdf_eval(m, wo, dl.dir, ns);
                     if max3(ev.f_cos) > 0.0 {
                         let so = spawn_origin(o, d, hit.t, ns);
-                        if !nearest_hit(so, dl.dir, 0.0, dl.dist * SHADOW_REACH).found {
+                        if !occluded(so, dl.dir, 0.0, dl.dist * SHADOW_REACH) {
                             sum += beta * ev.f_cos * dl.value;
                         }
                     }

@@ -7,7 +7,7 @@
 
 #import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, LIGHT_POINT, F32_MAX}
 #import strahl::bindings::{frame, materials, lights}
-#import strahl::traverse::{nearest_hit, hit_normal, hit_material}
+#import strahl::traverse::{nearest_hit, occluded, hit_normal, hit_material}
 #import strahl::spawn::spawn_origin
 #import strahl::raygen::primary_ray
 
@@ -51,6 +51,10 @@ fn refract_dir(d: vec3<f32>, n: vec3<f32>, cos_i: f32, eta_ratio: f32) -> vec3<f
 // dielectric colours crossed otherwise.
 fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec3<f32>, dist: f32) -> vec3<f32> {
     var origin = spawn_origin(o, d, t, n);
+#ifndef SHADOW_CROSSING
+    // Every surface is opaque: any hit blocks the light.
+    return select(vec3<f32>(1.0), vec3<f32>(0.0), occluded(origin, l, 0.0, dist));
+#else
     var remaining = dist;
     var tr = vec3<f32>(1.0);
     for (var pass_ = 0u; pass_ < SHADOW_PASSES; pass_ += 1u) {
@@ -58,7 +62,6 @@ fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec
         if !hit.found {
             return tr;
         }
-#ifdef SHADOW_CROSSING
         // Dielectrics tint the shadow ray; emissive surfaces (lights) let it through.
         let m = materials[hit_material(hit)];
         if m.kind == MAT_DIELECTRIC {
@@ -70,11 +73,9 @@ fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec
         let side = select(hn, -hn, dot(l, hn) < 0.0);
         origin = spawn_origin(origin, l, hit.t, side);
         remaining -= hit.t;
-#else
-        return vec3<f32>(0.0);
-#endif
     }
     return vec3<f32>(0.0);
+#endif
 }
 #endif
 

@@ -386,10 +386,22 @@ fn offer_triangles(best: ptr<function, Nearest>, first: u32, end: u32, o: vec3<f
 // The nearest hit in (tmin, tmax): identical choice to accel::traverse::nearest (and to
 // accel::gpu_bvh::nearest, whose walk this is).
 fn nearest_hit(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Nearest {
+    return walk(o, d, tmin, tmax, false);
+}
+
+// Whether anything lies in (tmin, tmax) along the ray: the walk of nearest_hit, ended at the
+// first hit it meets (accel::gpu_bvh::occluded), for shadow rays.
+fn occluded(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> bool {
+    return walk(o, d, tmin, tmax, true).found;
+}
+
+// The nearest hit in (tmin, tmax) or, with any_hit, some hit (each caller passes a constant,
+// and the driver's inlining leaves a walk specialised to it).
+fn walk(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32, any_hit: bool) -> Nearest {
     var best = nearest_none(tmax);
 #ifdef PLANES
     let np = arrayLength(&planes);
-    for (var i = 0u; i < np; i += 1u) {
+    for (var i = 0u; i < np && !(any_hit && best.found); i += 1u) {
         offer_nearest(&best, prim_ref(KIND_PLANE, i), o, d, tmin);
     }
 #endif
@@ -400,6 +412,9 @@ fn nearest_hit(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Nearest {
 #endif
     var stack: Stack;
     var cur = 0u;
+    if any_hit && best.found {
+        cur = LINK_EMPTY;
+    }
     // One loop whose iterations take one node step or one leaf: SIMD lanes at leaves and
     // lanes at inner nodes advance together (measured on lavapipe: cheaper than separate
     // loops for node steps and leaves, which make lanes wait for each other).
@@ -418,22 +433,22 @@ fn nearest_hit(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Nearest {
                 offer_triangles(&best, first, end, o, sh, tmin);
 #endif
             }
-            cur = stack_pop(&stack, search_bound(best));
+            cur = select(stack_pop(&stack, search_bound(best)), LINK_EMPTY, any_hit && best.found);
         }
     }
 #else
 #ifdef SPHERES
-    for (var i = 0u; i < arrayLength(&spheres); i += 1u) {
+    for (var i = 0u; i < arrayLength(&spheres) && !(any_hit && best.found); i += 1u) {
         offer_nearest(&best, prim_ref(KIND_SPHERE, i), o, d, tmin);
     }
 #endif
 #ifdef CYLINDERS
-    for (var i = 0u; i < arrayLength(&cylinders); i += 1u) {
+    for (var i = 0u; i < arrayLength(&cylinders) && !(any_hit && best.found); i += 1u) {
         offer_nearest(&best, prim_ref(KIND_CYLINDER, i), o, d, tmin);
     }
 #endif
 #ifdef TRIANGLES
-    for (var i = 0u; i < arrayLength(&triangles); i += 1u) {
+    for (var i = 0u; i < arrayLength(&triangles) && !(any_hit && best.found); i += 1u) {
         offer_nearest(&best, prim_ref(KIND_TRIANGLE, i), o, d, tmin);
     }
 #endif

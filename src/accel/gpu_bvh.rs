@@ -335,6 +335,37 @@ pub fn nearest(bvh: &GpuBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32,
     best.found.then(|| prims.hit(best.prim, ray, best.t, best.part))
 }
 
+/// Whether anything lies in (tmin, tmax) along the ray: the walk of [`nearest`] ended at the
+/// first hit it meets (`occluded` in `shaders/traverse.wgsl`, for shadow rays).
+pub fn occluded(bvh: &GpuBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32) -> bool {
+    let mut best = Nearest::new(tmax);
+    for r in prims.plane_refs() {
+        prims.offer_nearest(r, ray, tmin, &mut best);
+    }
+    let found = std::cell::Cell::new(best.found);
+    walk(bvh, ray, tmin, &mut || if found.get() { f32::NEG_INFINITY } else { tmax }, &mut |link| {
+        let mut b = Nearest::new(tmax);
+        match link {
+            Link::Triangles { first, count } => {
+                for k in first..first + count {
+                    let r = PrimRef::new(PrimKind::Triangle, bvh.triangles[k].index as usize);
+                    if let Some((t, part)) = bvh.triangle(k).roots(ray, tmin, tmax).first() {
+                        b.offer(t, r, part);
+                    }
+                }
+            }
+            Link::Shapes { first, count } => {
+                for &r in &bvh.shape_refs[first..first + count] {
+                    prims.offer_nearest(PrimRef(r), ray, tmin, &mut b);
+                }
+            }
+            Link::Inner(_) => unreachable!("walk passes leaves only"),
+        }
+        found.set(found.get() || b.found);
+    });
+    found.get()
+}
+
 /// Every hit in (tmin, tmax), sorted as [`Primitives::all_brute`] sorts them.
 pub fn all(bvh: &GpuBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32) -> Vec<Hit<f32>> {
     let mut hits = Vec::new();
@@ -445,6 +476,9 @@ mod tests {
             let want = prims.nearest_brute(&ray, 0.0, f32::INFINITY);
             assert_eq!(nearest(&g, &prims, &ray, 0.0, f32::INFINITY), want, "{ray:?}");
             assert_eq!(all(&g, &prims, &ray, 0.0, 1e30), prims.all_brute(&ray, 0.0, 1e30), "{ray:?}");
+            let reach = rng.range(0.0, 60.0) as f32;
+            let blocked = prims.nearest_brute(&ray, 0.0, reach).is_some();
+            assert_eq!(occluded(&g, &prims, &ray, 0.0, reach), blocked, "{ray:?} to {reach}");
         }
     }
 
