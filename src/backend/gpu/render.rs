@@ -11,7 +11,8 @@ use std::time::{Duration, Instant};
 
 /// Tile side in pixels.
 pub const TILE: u32 = 128;
-const WORKGROUP: u32 = 8;
+/// Side of a render workgroup in invocations (`TILE_WORKGROUP` in the shaders).
+pub const WORKGROUP: u32 = 8;
 const PIXEL_BYTES: u64 = 16;
 
 /// What a GPU render measured.
@@ -21,6 +22,8 @@ pub struct RenderStats {
     pub wall: Duration,
     /// Sum of per-dispatch GPU times from timestamp queries, if the adapter has them.
     pub gpu_time: Option<Duration>,
+    /// The same sum per kernel (entry point), where the adapter has timestamp queries.
+    pub kernel_times: Vec<(&'static str, Duration)>,
     pub dispatches: u32,
     /// Time spent compiling the pipeline (zero when it was cached).
     pub compile_time: Duration,
@@ -117,6 +120,7 @@ pub fn render(
     }
     stats.wall = start.elapsed();
     stats.gpu_time = timer.map(|_| Duration::from_nanos(gpu_ns as u64));
+    stats.kernel_times = stats.gpu_time.map(|t| (entry, t)).into_iter().collect();
     stats.compile_time = if was_cached { Duration::ZERO } else { pipe.compile_time };
     Ok((img, stats))
 }
