@@ -21,7 +21,7 @@
 @group(1) @binding(0) var<storage, read_write> output: array<vec4<f32>>;
 
 // Shadow rays stop this fraction short of the light point (render::path::SHADOW_REACH).
-const SHADOW_REACH: f32 = 0.999755859375;
+const SHADOW_REACH: f32 = #{SHADOW_REACH};
 
 fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
     let a = pdf_a * pdf_a;
@@ -124,7 +124,7 @@ fn path_radiance(origin: vec3<f32>, dir: vec3<f32>, rng: ptr<function, u32>) -> 
     return sum;
 }
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(#{TILE_WORKGROUP}, #{TILE_WORKGROUP}, 1)
 fn render_path(@builtin(global_invocation_id) gid: vec3<u32>) {
     let px = tile_pixel(frame, gid);
     if px.z == 0u {

@@ -5,6 +5,7 @@
 
 pub mod render;
 pub mod shaders;
+pub mod shared;
 pub mod trace;
 
 pub use shaders::{FeatureKey, Program};
