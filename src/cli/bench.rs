@@ -6,8 +6,9 @@
 //!   first dispatch, where lavapipe's JIT compiles, measured in a child process whose Mesa shader
 //!   disk cache is an empty folder) and its median frame time; then the CPU backend.
 //! - Path tracing (pixel samples per second, `--spp` samples per pixel a frame): the GPU's
-//!   progressive renderer with its pipeline compiled before timing, the time of each kernel from
-//!   timestamp queries where the adapter has them, then the CPU backend.
+//!   megakernel and wavefront tracers, each with its pipelines compiled before timing and the
+//!   time of each kernel from timestamp queries where the adapter has them, then the CPU
+//!   backend.
 //!
 //! Frame times are medians of `--frames` frames after one untimed frame, wall clock, on both
 //! backends. Ratios are measured in one run: compare them, not absolute times, across machines
@@ -20,8 +21,9 @@ use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use strahl::backend::gpu::render::{Progressive, render};
-use strahl::backend::gpu::{FeatureKey, GpuContext, SceneBuffers};
+use strahl::backend::gpu::render::{Progressive, render, render_tiles};
+use strahl::backend::gpu::wavefront::Wavefront;
+use strahl::backend::gpu::{FeatureKey, GpuContext, PathKernels, SceneBuffers};
 use strahl::gpu_types::GpuFrame;
 use strahl::render::Prepared;
 use strahl::scene::{RenderMode, Scene};
@@ -247,34 +249,50 @@ fn bench_whitted(
     }))
 }
 
-/// Path-tracing rows: the GPU's progressive renderer (per-kernel times from one timed render
-/// with timestamps) and the CPU backend, `a.spp` samples per pixel a frame.
+/// Path-tracing rows: the GPU's megakernel and wavefront tracers (per-kernel times from one
+/// timed render with timestamp queries; frame times from progressive renders) and the CPU
+/// backend, `a.spp` samples per pixel a frame.
 fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: u32, h: u32) -> Result<Value> {
     let frame = GpuFrame { spp: a.spp, ..prep.frame(w, h) };
     let samples = w as f64 * h as f64 * a.spp as f64;
-    let mut gpu = Value::Null;
+    let mut gpu = Vec::new();
+    let row = |kernels: &str, features: String, wall: Duration, times: &[(&str, Duration)]| {
+        let kernel_times: serde_json::Map<String, Value> =
+            times.iter().map(|(k, t)| (k.to_string(), json!(t.as_secs_f64()))).collect();
+        json!({
+            "kernels": kernels,
+            "features": features,
+            "frame_s": wall.as_secs_f64(),
+            "msamples_per_s": samples / wall.as_secs_f64() / 1e6,
+            "kernel_time_s": kernel_times,
+        })
+    };
     if let Some(ctx) = ctx {
         let buffers = SceneBuffers::upload(ctx, &prep.gpu)?;
         let key = buffers.key;
         // Compile (lavapipe compiles at the first dispatch), then per-kernel GPU times from one
         // render with timestamp queries.
-        render(ctx, &buffers, &GpuFrame { spp: 1, ..prep.frame(8, 8) }, RenderMode::Path, key, &|_, _| {})?;
-        let (_, stats) = render(ctx, &buffers, &frame, RenderMode::Path, key, &|_, _| {})?;
-        let mut progressive = Progressive::new(ctx.clone(), buffers, frame)?;
+        let mega = Progressive::with_kernels(ctx.clone(), buffers.clone(), prep.frame(8, 8), PathKernels::Megakernel);
+        mega?.add_samples(1)?;
+        let (_, stats) = render_tiles(ctx, &buffers, &frame, RenderMode::Path, key, &|_, _| {})?;
+        let mut progressive = Progressive::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Megakernel)?;
         let wall = median_time(a.frames, || {
             progressive.reset();
             progressive.add_samples(a.spp)?;
             Ok(())
         })?;
-        let kernels: serde_json::Map<String, Value> =
-            stats.kernel_times.iter().map(|(k, t)| (k.to_string(), json!(t.as_secs_f64()))).collect();
-        gpu = json!({
-            "kernels": "megakernel",
-            "features": stats.key.label(),
-            "frame_s": wall.as_secs_f64(),
-            "msamples_per_s": samples / wall.as_secs_f64() / 1e6,
-            "kernel_time_s": kernels,
-        });
+        gpu.push(row("megakernel", stats.key.label(), wall, &stats.kernel_times));
+        if ctx.has_wavefront() {
+            let wf = Wavefront::new(ctx, buffers.clone(), key, frame)?;
+            let (_, times) = wf.render(ctx, &|_, _| {})?;
+            let mut progressive = Progressive::with_kernels(ctx.clone(), buffers, frame, PathKernels::Wavefront)?;
+            let wall = median_time(a.frames, || {
+                progressive.reset();
+                progressive.add_samples(a.spp)?;
+                Ok(())
+            })?;
+            gpu.push(row("wavefront", wf.key().label(), wall, &times));
+        }
     }
     let cpu = median_time(a.frames, || {
         strahl::backend::cpu::render(prep, &frame, RenderMode::Path, &|_| {});
@@ -350,8 +368,8 @@ fn print_report(r: &Value) {
             );
             println!("| backend | kernels | frame ms | M samples/s | kernel times ms | features |");
             println!("|---|---|---|---|---|---|");
-            let g = &p["gpu"];
-            if !g.is_null() {
+            let c = &p["cpu"];
+            for g in p["gpu"].as_array().into_iter().flatten() {
                 let kernels: Vec<String> = g["kernel_time_s"]
                     .as_object()
                     .into_iter()
@@ -366,15 +384,15 @@ fn print_report(r: &Value) {
                     if kernels.is_empty() { "-".to_string() } else { kernels.join(", ") },
                     g["features"].as_str().unwrap_or("")
                 );
+                if let (Some(gs), Some(cs)) = (g["msamples_per_s"].as_f64(), c["msamples_per_s"].as_f64()) {
+                    summary.push(format!(
+                        "{name}, path tracing: the GPU's {} is {} than the CPU backend",
+                        g["kernels"].as_str().unwrap_or(""),
+                        faster_or_slower(gs / cs)
+                    ));
+                }
             }
-            let c = &p["cpu"];
             println!("| cpu | - | {} | {} | - | - |", f(&c["frame_s"], 1e3, 1), f(&c["msamples_per_s"], 1.0, 3));
-            if let (Some(gs), Some(cs)) = (g["msamples_per_s"].as_f64(), c["msamples_per_s"].as_f64()) {
-                summary.push(format!(
-                    "{name}, path tracing: the GPU is {} than the CPU backend",
-                    faster_or_slower(gs / cs)
-                ));
-            }
         }
     }
     if !summary.is_empty() {

@@ -26,6 +26,7 @@ pub const MODULES: &[(&str, &str)] = &[
     ("shaders/sampler.wgsl", include_str!("../../../shaders/sampler.wgsl")),
     ("shaders/bsdf.wgsl", include_str!("../../../shaders/bsdf.wgsl")),
     ("shaders/emitters.wgsl", include_str!("../../../shaders/emitters.wgsl")),
+    ("shaders/path_vertex.wgsl", include_str!("../../../shaders/path_vertex.wgsl")),
 ];
 
 /// A top-level shader and its entry points.
@@ -37,6 +38,8 @@ pub enum Program {
     Path,
     /// `trace.wgsl`: ray queries.
     Trace,
+    /// `wavefront.wgsl`: path tracing as separate kernels over queues of paths.
+    Wavefront,
     /// `view.wgsl`: the viewer's debug images (normals, depth, BVH cost) of primary rays;
     /// composed with `COUNT_VISITS`, which makes the traversal count its work.
     View,
@@ -48,6 +51,7 @@ impl Program {
             Program::Render => ("shaders/render.wgsl", include_str!("../../../shaders/render.wgsl")),
             Program::Path => ("shaders/path.wgsl", include_str!("../../../shaders/path.wgsl")),
             Program::Trace => ("shaders/trace.wgsl", include_str!("../../../shaders/trace.wgsl")),
+            Program::Wavefront => ("shaders/wavefront.wgsl", include_str!("../../../shaders/wavefront.wgsl")),
             Program::View => ("shaders/view.wgsl", include_str!("../../../shaders/view.wgsl")),
         }
     }
@@ -125,7 +129,7 @@ impl FeatureKey {
     /// The key as the program sees it: the trace and view programs ignore shading flags.
     pub fn for_program(self, p: Program) -> FeatureKey {
         match p {
-            Program::Render | Program::Path => self,
+            Program::Render | Program::Path | Program::Wavefront => self,
             Program::Trace | Program::View => FeatureKey(self.0 & Self::GEOMETRY),
         }
     }
@@ -247,7 +251,7 @@ mod tests {
             .into_par_iter()
             .flat_map_iter(|bits| {
                 let key = FeatureKey(bits);
-                [Program::Render, Program::Path, Program::Trace, Program::View]
+                [Program::Render, Program::Path, Program::Wavefront, Program::Trace, Program::View]
                     .into_iter()
                     .filter(move |&p| key.for_program(p) == key)
                     .filter_map(move |p| match compose(p, key) {
@@ -297,7 +301,7 @@ mod tests {
     /// flow (shaders/bindings.wgsl): no program binds a uniform buffer.
     #[test]
     fn no_program_binds_a_uniform_buffer() {
-        for p in [Program::Render, Program::Path, Program::Trace, Program::View] {
+        for p in [Program::Render, Program::Path, Program::Wavefront, Program::Trace, Program::View] {
             let key = FeatureKey::ALL.for_program(p);
             let m = compose(p, key).unwrap();
             let uniforms: Vec<_> = m
@@ -317,7 +321,7 @@ mod tests {
         use super::super::shared::{Shared, constants};
         let shared: HashMap<&str, Shared> = constants().into_iter().collect();
         let mut seen = std::collections::HashSet::new();
-        for p in [Program::Render, Program::Path, Program::Trace, Program::View] {
+        for p in [Program::Render, Program::Path, Program::Wavefront, Program::Trace, Program::View] {
             for key in [FeatureKey::ALL, FeatureKey(FeatureKey::ALL.0 | FeatureKey::LOAD64)] {
                 let m = compose(p, key).unwrap();
                 for (_, c) in m.constants.iter() {

@@ -88,6 +88,14 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         // Workgroup sizes the host dispatches by.
         ("TILE_WORKGROUP", U32(super::render::WORKGROUP)),
         ("TRACE_WORKGROUP", U32(super::trace::WORKGROUP as u32)),
+        ("WAVEFRONT_WORKGROUP", U32(super::wavefront::WORKGROUP)),
+        // The wavefront tracer's counters (backend::gpu::wavefront::counter).
+        ("WF_PATHS_IN", U32(super::wavefront::counter::PATHS_IN)),
+        ("WF_PATHS_OUT", U32(super::wavefront::counter::PATHS_OUT)),
+        ("WF_SHADOWS_OUT", U32(super::wavefront::counter::SHADOWS_OUT)),
+        ("WF_SHADOWS_IN", U32(super::wavefront::counter::SHADOWS_IN)),
+        ("WF_ARGS_PATHS", U32(super::wavefront::counter::ARGS_PATHS)),
+        ("WF_ARGS_SHADOWS", U32(super::wavefront::counter::ARGS_SHADOWS)),
     ]
 }
 
