@@ -16,6 +16,9 @@ pub const TILE: u32 = 128;
 pub const WORKGROUP: u32 = 8;
 const PIXEL_BYTES: u64 = 16;
 
+/// GPU time per kernel (entry point name), from timestamp queries.
+pub type KernelTimes = Vec<(&'static str, Duration)>;
+
 /// What a GPU render measured.
 #[derive(Clone, Debug, Default)]
 pub struct RenderStats {
@@ -24,7 +27,7 @@ pub struct RenderStats {
     /// Sum of per-dispatch GPU times from timestamp queries, if the adapter has them.
     pub gpu_time: Option<Duration>,
     /// The same sum per kernel (entry point), where the adapter has timestamp queries.
-    pub kernel_times: Vec<(&'static str, Duration)>,
+    pub kernel_times: KernelTimes,
     pub dispatches: u32,
     /// Time spent compiling the pipeline (zero when it was cached).
     pub compile_time: Duration,
@@ -160,7 +163,7 @@ pub struct Progressive {
 
 enum ProgressiveKernels {
     Megakernel { scene: SceneBuffers, pipeline: Arc<CachedPipeline>, output: wgpu::Buffer, out_group: wgpu::BindGroup },
-    Wavefront(Wavefront),
+    Wavefront(Box<Wavefront>),
 }
 
 impl Progressive {
@@ -187,7 +190,7 @@ impl Progressive {
                 let key = scene.key;
                 let wf = Wavefront::new(&ctx, scene, key, frame)?;
                 wf.check_whole_image(&ctx)?;
-                ProgressiveKernels::Wavefront(wf)
+                ProgressiveKernels::Wavefront(Box::new(wf))
             }
             PathKernels::Megakernel => {
                 let (program, entry) = program_for(RenderMode::Path);

@@ -8,7 +8,7 @@
 //! Which one is faster depends on the device: see the README's figures. `strahl bench` measures
 //! both, with the time of each kernel.
 
-use super::render::{Timer, stage_frame};
+use super::render::{KernelTimes, Timer, stage_frame};
 use super::{CachedPipeline, FeatureKey, GpuContext, GpuError, Program, SceneBuffers};
 use crate::gpu_types::{FRAME_ACCUMULATE, GpuFrame};
 use crate::image::Image;
@@ -224,11 +224,7 @@ impl Wavefront {
 
     /// Renders the whole image at `frame.spp` samples per pixel (band by band, one pass per
     /// sample), with the GPU time of each kernel where the adapter has timestamp queries.
-    pub fn render(
-        &self,
-        ctx: &GpuContext,
-        progress: &dyn Fn(u64, u64),
-    ) -> Result<(Image, Vec<(&'static str, Duration)>), GpuError> {
+    pub fn render(&self, ctx: &GpuContext, progress: &dyn Fn(u64, u64)) -> Result<(Image, KernelTimes), GpuError> {
         let (w, h) = (self.frame.width, self.frame.height);
         let timer = ctx.timestamps.then(|| Timer::new(ctx, self.kernels_per_pass()));
         let mut kernel_ns = [0.0f64; ENTRIES.len()];
