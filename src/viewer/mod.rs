@@ -10,30 +10,30 @@
 //! the accumulation; otherwise samples keep adding up to the sample limit.
 
 pub mod camera;
+mod compare;
 pub mod gpu;
-pub mod scene;
+mod jobs;
+mod pacing;
+mod panel;
+mod reload;
+mod screenshot;
 
-use crate::accel::Bvh;
 use crate::backend::gpu::{CachedPipeline, FeatureKey, GpuContext, Program, SceneBuffers};
-use crate::gpu_types::{GpuFrame, GpuScene};
-use crate::metrics::Agreement;
-use crate::primitives::Primitives;
+use crate::gpu_types::GpuFrame;
 use crate::render::Prepared;
 use anyhow::{Context as _, Result, anyhow};
 use camera::ViewCamera;
+use compare::{Comparison, ComparisonView};
 use eframe::egui;
 use eframe::egui_wgpu;
 use gpu::{PresentParams, ViewMode, ViewRenderer};
-use scene::{Job, Watcher};
-use std::path::{Path, PathBuf};
+use jobs::{Job, Watcher};
+use pacing::Pacer;
+use reload::Loaded;
+use screenshot::Shot;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-
-/// GPU time per UI frame the progressive passes aim at (ms).
-const GPU_MS_PER_FRAME: f64 = 20.0;
-
-/// GPU time of one whole sample pass while the camera moves (ms); see `preview_factor`.
-const PREVIEW_PASS_MS: f64 = 40.0;
 
 /// What `strahl view` was asked to do.
 #[derive(Clone, Debug)]
@@ -54,7 +54,7 @@ pub struct ViewOptions {
 
 /// Opens the window and runs until it is closed (or, with `frames`, until done).
 pub fn run(opts: ViewOptions) -> Result<()> {
-    let prep = scene::load(&opts.scene).map_err(|e| anyhow!(e))?;
+    let prep = reload::load(&opts.scene).map_err(|e| anyhow!(e))?;
     eprintln!(
         "scene: {} objects, {} triangles, BVH {} nodes built in {:.3} s",
         prep.scene.objects.len(),
@@ -107,47 +107,8 @@ pub fn run(opts: ViewOptions) -> Result<()> {
     }
 }
 
-/// The key of the shader that can render every object of `scene`.
-fn full_key(scene: &crate::scene::Scene) -> FeatureKey {
-    let prims = Primitives::<f32>::from_scene(scene);
-    let mut key = FeatureKey::for_scene(&GpuScene::new(scene, &prims, &Bvh::default()));
-    if prims.bounded_count() > FeatureKey::BRUTE_FORCE_MAX {
-        key.0 |= FeatureKey::BVH;
-    }
-    key
-}
-
-/// A finished GPU-against-CPU comparison.
-struct Comparison {
-    samples: u32,
-    size: [u32; 2],
-    cpu_time: Duration,
-    agreement: Agreement,
-    /// Largest channel difference per pixel, in 8-bit sRGB codes.
-    diff: Vec<u8>,
-}
-
-struct ComparisonView {
-    c: Comparison,
-    texture: egui::TextureHandle,
-}
-
-/// Loaded off the UI thread: the prepared scene (hidden objects left out) and the key of
-/// the whole scene.
-type Loaded = Result<(Prepared, FeatureKey, Vec<bool>), String>;
-
 /// Compiling a pipeline on a worker thread (the error as text).
 type CompileJob = Job<Result<(), String>>;
-
-/// Filled by the screenshot callback: whether the PNG was written.
-type ShotResult = Arc<Mutex<Option<Result<(), String>>>>;
-
-/// Screenshot mode: where the shot stands.
-enum Shot {
-    Rendering,
-    Requested { at: Instant, result: ShotResult },
-    Closing,
-}
 
 struct Viewer {
     opts: ViewOptions,
@@ -167,19 +128,7 @@ struct Viewer {
     /// What the accumulation holds: the frame and scene generation it was started with.
     accumulating: Option<(GpuFrame, u64)>,
     present_dirty: bool,
-    /// Tiles per UI frame (adapted to keep their GPU time near [`GPU_MS_PER_FRAME`]).
-    budget: f64,
-    last_ui: Option<Instant>,
-    /// Smoothed UI frame interval in ms.
-    frame_ms: f64,
-    /// Shortest recent UI frame interval (ms), the cost of a frame without samples.
-    base_ms: f64,
-    /// The camera of the last frame, and until when it counts as moving.
-    last_camera: Option<ViewCamera>,
-    moving_until: Option<Instant>,
-    /// The GPU timing the budget was last adapted to.
-    adapted_to: Option<Instant>,
-    worked_last_frame: bool,
+    pacer: Pacer,
     load_job: Option<Job<Loaded>>,
     /// Re-preparing with objects hidden, for the scene file loaded as `file_gen`.
     visibility_job: Option<Job<(u64, Prepared)>>,
@@ -198,9 +147,8 @@ struct Viewer {
     save_status: Option<String>,
     shot: Option<Shot>,
     failure: Arc<Mutex<Option<anyhow::Error>>>,
-    /// UI frames run, and their intervals and sample counts (--frames).
+    /// UI frames run (--frames).
     frames_run: u32,
-    frame_log: Vec<f64>,
     image_rect_px: [u32; 4],
 }
 
@@ -237,14 +185,7 @@ impl Viewer {
             heat_max: 64.0,
             accumulating: None,
             present_dirty: false,
-            budget: 4.0,
-            last_ui: None,
-            frame_ms: 0.0,
-            base_ms: f64::INFINITY,
-            adapted_to: None,
-            last_camera: None,
-            moving_until: None,
-            worked_last_frame: false,
+            pacer: Pacer::default(),
             load_job: None,
             visibility_job: None,
             file_gen: 0,
@@ -261,7 +202,6 @@ impl Viewer {
             shot: opts.screenshot.as_ref().map(|_| Shot::Rendering),
             failure,
             frames_run: 0,
-            frame_log: Vec::new(),
             image_rect_px: [0; 4],
             opts,
         })
@@ -313,89 +253,8 @@ impl Viewer {
         None
     }
 
-    fn install(&mut self, prep: Prepared) {
-        match SceneBuffers::upload(&self.gpu.ctx, &prep.gpu) {
-            Ok(b) => {
-                self.buffers = b;
-                self.prep = Arc::new(prep);
-                self.scene_gen += 1;
-                self.gpu_error = None;
-            }
-            Err(e) => self.gpu_error = Some(e.to_string()),
-        }
-    }
-
-    fn start_reload(&mut self) {
-        if self.load_job.is_some() {
-            return;
-        }
-        let path = self.opts.scene.clone();
-        let visible = self.visible.clone();
-        self.load_job = Some(Job::spawn(move || {
-            let scene = crate::scene::Scene::load(&path).map_err(|e| e.to_string())?;
-            let key = full_key(&scene);
-            let visible = if visible.len() == scene.objects.len() { visible } else { vec![true; scene.objects.len()] };
-            Ok((scene::prepare(scene, &visible), key, visible))
-        }));
-    }
-
-    fn start_visibility(&mut self) {
-        if self.visibility_job.is_some() {
-            self.visibility_dirty = true;
-            return;
-        }
-        let scene = self.prep.scene.clone();
-        let visible = self.visible.clone();
-        let file_gen = self.file_gen;
-        self.visibility_job = Some(Job::spawn(move || (file_gen, scene::prepare(scene, &visible))));
-    }
-
-    fn poll_jobs(&mut self, ctx: &egui::Context) {
-        if let Some(job) = &self.load_job
-            && let Some(r) = job.poll()
-        {
-            self.load_job = None;
-            match r {
-                Ok(Ok((prep, key, visible))) => {
-                    if prep.scene.camera != self.prep.scene.camera {
-                        self.camera = ViewCamera::from_scene(&prep.scene.camera);
-                    }
-                    if prep.scene.render != self.prep.scene.render {
-                        self.max_depth = prep.scene.render.max_depth;
-                    }
-                    self.watcher.watch(&self.opts.scene, Some(&prep.scene));
-                    // Checkboxes changed while it loaded: apply them to the new scene next.
-                    if self.visible.len() == visible.len() && self.visible != visible {
-                        self.visibility_dirty = true;
-                    } else {
-                        self.visible = visible;
-                    }
-                    self.full_key = key;
-                    self.load_error = None;
-                    self.failed_compile = None;
-                    self.file_gen += 1;
-                    self.install(prep);
-                }
-                Ok(Err(text)) => self.load_error = Some(text),
-                Err(()) => self.load_error = Some("loading the scene failed (the loader thread panicked)".into()),
-            }
-        }
-        if let Some(job) = &self.visibility_job
-            && let Some(r) = job.poll()
-        {
-            self.visibility_job = None;
-            match r {
-                // Prepared from the file as it is loaded now.
-                Ok((file_gen, prep)) if file_gen == self.file_gen => self.install(prep),
-                // A reload came in between: it kept the checkboxes; apply them to it.
-                Ok(_) => self.visibility_dirty = true,
-                Err(()) => {}
-            }
-        }
-        if self.visibility_dirty && self.visibility_job.is_none() && self.load_job.is_none() {
-            self.visibility_dirty = false;
-            self.start_visibility();
-        }
+    /// Takes in a pipeline compiled on a worker thread, or its error.
+    fn poll_compile(&mut self) {
         if let Some((id, job)) = &self.compile_job
             && let Some(r) = job.poll()
         {
@@ -408,17 +267,6 @@ impl Viewer {
                     self.failed_compile = Some(id);
                 }
                 Err(()) => self.failed_compile = Some(id),
-            }
-        }
-        if let Some(job) = &self.cpu_job
-            && let Some(r) = job.poll()
-        {
-            self.cpu_job = None;
-            if let Ok(c) = r {
-                let rgb: Vec<u8> = c.diff.iter().flat_map(|&d| diff_colour(d)).collect();
-                let image = egui::ColorImage::from_rgb([c.size[0] as usize, c.size[1] as usize], &rgb);
-                let texture = ctx.load_texture("gpu-cpu difference", image, egui::TextureOptions::NEAREST);
-                self.comparison = Some(ComparisonView { c, texture });
             }
         }
     }
@@ -520,17 +368,13 @@ impl Viewer {
         self.handle_input(&ctx, &response, ph as f64);
 
         // While the camera moves, a heavy scene renders coarser, so that whole passes keep up.
-        if self.last_camera.as_ref() != Some(&self.camera) {
-            if self.last_camera.is_some() {
-                self.moving_until = Some(Instant::now() + Duration::from_millis(300));
-            }
-            self.last_camera = Some(self.camera.clone());
-        }
-        let moving = self.moving_until.is_some_and(|t| Instant::now() < t);
-        if self.moving_until.is_some() && !moving {
-            self.moving_until = None;
-        }
-        let scale = if moving { self.scale / self.preview_factor(pw, ph) } else { self.scale };
+        let moving = self.pacer.camera_moving(&self.camera, Instant::now());
+        let scale = if moving && !self.whole_passes() {
+            let rays = pw as f64 * ph as f64 * (self.scale as f64).powi(2);
+            self.scale / pacing::preview_factor(rays, pacing::timing_summary(self.gpu.timings.iter()).1)
+        } else {
+            self.scale
+        };
         let max_side = self.gpu.ctx.limits.max_texture_dimension_2d;
         let w = ((pw as f32 * scale).round() as u32).clamp(1, max_side);
         let h = ((ph as f32 * scale).round() as u32).clamp(1, max_side);
@@ -551,7 +395,7 @@ impl Viewer {
             self.accumulating = Some((frame, self.scene_gen));
             self.present_dirty = true;
         }
-        self.worked_last_frame = false;
+        self.pacer.worked_last_frame = false;
         if self.gpu.target.is_some()
             && let Some(pipe) = self.pipeline()
         {
@@ -560,11 +404,11 @@ impl Viewer {
                 let budget = if self.whole_passes() {
                     band.tile_count() - self.gpu.acc.next_tile
                 } else {
-                    self.budget.round().max(1.0) as u32
+                    self.pacer.budget.round().max(1.0) as u32
                 };
                 let params = self.present_params();
                 let n = self.gpu.step(&self.buffers, &pipe.pipeline, &frame, budget, self.max_samples, params);
-                self.worked_last_frame = n > 0;
+                self.pacer.worked_last_frame = n > 0;
             } else if self.present_dirty {
                 self.gpu.represent(self.present_params());
             }
@@ -578,54 +422,6 @@ impl Viewer {
             let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
             painter.image(t.texture_id, image_rect, uv, egui::Color32::WHITE);
         }
-    }
-
-    /// How much coarser to render while the camera moves: enough that a whole sample pass
-    /// takes about [`PREVIEW_PASS_MS`] of GPU time at the measured speed (1: no change).
-    fn preview_factor(&self, pw: u32, ph: u32) -> f32 {
-        if self.whole_passes() {
-            return 1.0;
-        }
-        let (_, rays_per_s) = self.timing_summary();
-        let Some(r) = rays_per_s else { return 1.0 };
-        let rays = pw as f64 * ph as f64 * (self.scale as f64).powi(2);
-        let pass_ms = rays / r * 1e3;
-        (pass_ms / PREVIEW_PASS_MS).sqrt().clamp(1.0, 8.0) as f32
-    }
-
-    /// Reads the GPU image back and starts the CPU render of the same samples, once the
-    /// accumulation sits on a whole number of passes.
-    fn maybe_start_comparison(&mut self, frame: &GpuFrame) {
-        let acc = self.gpu.acc;
-        if !self.compare_requested || self.cpu_job.is_some() || acc.samples == 0 || acc.next_tile != 0 {
-            return;
-        }
-        self.compare_requested = false;
-        let Some(render_mode) = self.mode.render_mode() else {
-            return;
-        };
-        let gpu_image = match self.gpu.read_mean() {
-            Ok(i) => i,
-            Err(e) => {
-                self.gpu_error = Some(e.to_string());
-                return;
-            }
-        };
-        let prep = self.prep.clone();
-        let frame = GpuFrame { spp: acc.samples, sample_base: 0, flags: 0, ..*frame };
-        self.cpu_job = Some(Job::spawn(move || {
-            let start = Instant::now();
-            let cpu = crate::backend::cpu::render(&prep, &frame, render_mode, &|_| {});
-            let cpu_time = start.elapsed();
-            let agreement = crate::metrics::agreement(&cpu, &gpu_image, 1);
-            let (a, b) = (cpu.to_srgb8(), gpu_image.to_srgb8());
-            let diff = a
-                .chunks(3)
-                .zip(b.chunks(3))
-                .map(|(p, q)| p.iter().zip(q).map(|(x, y)| x.abs_diff(*y)).max().unwrap_or(0))
-                .collect();
-            Comparison { samples: acc.samples, size: [frame.width, frame.height], cpu_time, agreement, diff }
-        }));
     }
 
     fn save(&mut self) {
@@ -644,292 +440,16 @@ impl Viewer {
             Err(e) => format!("cannot save {}: {e:#}", path.display()),
         });
     }
-
-    /// Sets the tiles per UI frame so that their GPU time stays near [`GPU_MS_PER_FRAME`]:
-    /// grown or shrunk by the latest measured frame (measured time includes fixed costs
-    /// per submission, so it is not assumed proportional to the tiles), or, before any
-    /// measurement, so that frames with work last at most a little longer than the
-    /// fastest frames seen.
-    fn adapt_budget(&mut self, dt_ms: f64) {
-        let max = gpu::MAX_TILES_PER_FRAME as f64;
-        if let Some(t) = self.gpu.timings.back() {
-            if self.adapted_to == Some(t.at) {
-                return;
-            }
-            self.adapted_to = Some(t.at);
-            let ms = t.gpu.as_secs_f64() * 1e3;
-            let factor = if ms < 0.25 * GPU_MS_PER_FRAME {
-                2.0
-            } else if ms < 0.8 * GPU_MS_PER_FRAME {
-                1.25
-            } else if ms > 1.25 * GPU_MS_PER_FRAME {
-                0.8
-            } else {
-                1.0
-            };
-            self.budget = (self.budget * factor).clamp(1.0, max);
-            return;
-        }
-        self.base_ms = self.base_ms.min(dt_ms).max(1.0) * 1.01;
-        if dt_ms > self.base_ms + 2.0 * GPU_MS_PER_FRAME {
-            self.budget = (self.budget * 0.75).max(1.0);
-        } else if dt_ms < self.base_ms + GPU_MS_PER_FRAME {
-            self.budget = (self.budget * 1.25 + 0.25).min(max);
-        }
-    }
-
-    fn timing_summary(&self) -> (Option<f64>, Option<f64>) {
-        // GPU ms per UI frame (median of the recent ones) and primary rays per second.
-        let recent: Vec<_> = self.gpu.timings.iter().rev().take(32).collect();
-        if recent.is_empty() {
-            return (None, None);
-        }
-        let mut ms: Vec<f64> = recent.iter().map(|t| t.gpu.as_secs_f64() * 1e3).collect();
-        ms.sort_by(f64::total_cmp);
-        let rays: u64 = recent.iter().map(|t| t.rays).sum();
-        let secs: f64 = recent.iter().map(|t| t.gpu.as_secs_f64()).sum();
-        (Some(ms[ms.len() / 2]), (secs > 0.0).then(|| rays as f64 / secs))
-    }
-
-    fn side_panel(&mut self, ui: &mut egui::Ui) {
-        egui::ScrollArea::vertical().id_salt("side").show(ui, |ui| {
-            ui.heading("strahl view");
-            ui.label(self.opts.scene.display().to_string());
-            if let Some(e) = &self.load_error {
-                ui.colored_label(egui::Color32::from_rgb(255, 90, 90), format!("reload failed; showing the last good scene:\n{e}"));
-            }
-            if let Some(e) = &self.gpu_error {
-                ui.colored_label(egui::Color32::from_rgb(255, 90, 90), e);
-            }
-            ui.separator();
-
-            ui.label("mode");
-            ui.horizontal_wrapped(|ui| {
-                for m in ViewMode::ALL {
-                    ui.radio_value(&mut self.mode, m, m.label());
-                }
-            });
-            if self.mode == ViewMode::Cost
-                && ui
-                    .add(egui::Slider::new(&mut self.heat_max, 1.0..=4096.0).logarithmic(true).text("heat scale"))
-                    .changed()
-            {
-                self.present_dirty = true;
-            }
-            ui.add_enabled(
-                self.mode.render_mode().is_some(),
-                egui::Slider::new(&mut self.max_depth, 0..=64).text("max depth"),
-            );
-            ui.add(egui::Slider::new(&mut self.scale, 0.1..=1.0).text("resolution scale"));
-            ui.add(egui::Slider::new(&mut self.max_samples, 1..=4096).logarithmic(true).text("sample limit"));
-            let mut fov = self.camera.fov_y;
-            if ui.add(egui::Slider::new(&mut fov, 1.0..=170.0).text("field of view °")).changed() {
-                self.camera.fov_y = fov;
-            }
-            if ui.button("reset camera (R)").clicked() {
-                self.camera = ViewCamera::from_scene(&self.prep.scene.camera);
-            }
-            ui.small("left drag: orbit · right/middle drag: pan · wheel: zoom · W A S D Q E: fly (shift: faster)");
-            ui.separator();
-
-            let acc = self.gpu.acc;
-            let (gpu_ms, rays_per_s) = self.timing_summary();
-            egui::Grid::new("stats").num_columns(2).striped(true).show(ui, |ui| {
-                let tiles = self.gpu.target.as_ref().map_or(0, |t| t.band().tile_count());
-                ui.label("samples");
-                let progress = if acc.next_tile > 0 { format!(" (+{}/{} tiles)", acc.next_tile, tiles) } else { String::new() };
-                ui.label(format!("{} / {}{progress}", acc.samples, self.max_samples));
-                ui.end_row();
-                if let Some(t) = &self.gpu.target {
-                    ui.label("render size");
-                    ui.label(format!("{} × {}", t.width, t.height));
-                    ui.end_row();
-                }
-                ui.label("frame");
-                ui.label(if self.frame_ms > 0.0 { format!("{:.1} ms (UI)", self.frame_ms) } else { "idle".into() });
-                ui.end_row();
-                ui.label("GPU");
-                ui.label(gpu_ms.map_or("-".into(), |ms| format!("{ms:.1} ms per frame")))
-                    .on_hover_text("submission to completion of this frame's sample tiles");
-                ui.end_row();
-                ui.label("Mrays/s");
-                ui.label(rays_per_s.map_or("-".into(), |r| format!("{:.2} primary", r / 1e6)));
-                ui.end_row();
-                if let (Some(r), Some(t)) = (rays_per_s, &self.gpu.target) {
-                    ui.label("sample pass");
-                    ui.label(format!("{:.0} ms", t.width as f64 * t.height as f64 / r * 1e3));
-                    ui.end_row();
-                }
-            });
-            let compiling = if self.compile_job.is_some() { " (compiling…)" } else { "" };
-            ui.add(egui::Label::new(format!("shader {}{compiling}", self.variant_label())).wrap());
-            ui.add(egui::Label::new(format!("adapter {}", self.gpu.ctx.adapter_name())).wrap());
-            ui.separator();
-
-            let can_compare = self.mode.render_mode().is_some() && self.cpu_job.is_none() && !self.compare_requested;
-            if ui
-                .add_enabled(can_compare, egui::Button::new("compare with CPU"))
-                .on_hover_text("render this view on the CPU reference with the same samples and show the difference")
-                .clicked()
-            {
-                self.compare_requested = true;
-            }
-            if self.compare_requested || self.cpu_job.is_some() {
-                ui.label("rendering on the CPU…");
-            }
-            if let Some(v) = &self.comparison {
-                let a = &v.c.agreement;
-                ui.label(format!(
-                    "{}×{}, {} samples, CPU {:.2} s\nwithin 1 code: {:.3} %\nlargest difference: {} codes\nmean FLIP: {:.5}",
-                    v.c.size[0],
-                    v.c.size[1],
-                    v.c.samples,
-                    v.c.cpu_time.as_secs_f64(),
-                    a.within_tolerance * 100.0,
-                    a.max_code_diff,
-                    a.mean_flip
-                ));
-                let width = ui.available_width();
-                let size = v.texture.size_vec2();
-                ui.image((v.texture.id(), egui::vec2(width, width * size.y / size.x.max(1.0))));
-                ui.small("black: equal · grey: 1 code · red: more");
-            }
-            ui.separator();
-
-            ui.horizontal(|ui| {
-                ui.add(egui::TextEdit::singleline(&mut self.save_path).desired_width(170.0));
-                if ui.button("save").on_hover_text(".png: what the image area shows; .exr: the linear values").clicked() {
-                    self.save();
-                }
-            });
-            if let Some(s) = &self.save_status {
-                ui.label(s);
-            }
-            ui.separator();
-
-            let n = self.visible.len();
-            let mut changed = false;
-            egui::CollapsingHeader::new(format!("objects ({n})")).default_open(n <= 16).show(ui, |ui| {
-                let row = ui.spacing().interact_size.y;
-                egui::ScrollArea::vertical().id_salt("objects").max_height(240.0).show_rows(ui, row, n, |ui, rows| {
-                    for i in rows {
-                        let label = scene::object_label(&self.prep.scene, i);
-                        changed |= ui.checkbox(&mut self.visible[i], label).changed();
-                    }
-                });
-            });
-            if changed {
-                self.start_visibility();
-            }
-        });
-    }
-
-    /// Screenshot mode, after this frame's passes: ask for the shot once the samples are in,
-    /// then close when it is saved.
-    fn drive_screenshot(&mut self, ctx: &egui::Context) {
-        let Some(path) = self.opts.screenshot.clone() else { return };
-        if let Some(e) = &self.gpu_error {
-            *self.failure.lock().expect("failure lock") = Some(anyhow!("{e}"));
-            self.shot = Some(Shot::Closing);
-        }
-        match &self.shot {
-            Some(Shot::Rendering) if self.gpu.acc.samples >= self.max_samples => {
-                let [x, y, w, h] = self.image_rect_px;
-                let t = self.gpu.target.as_ref().expect("target");
-                println!("image_rect {x} {y} {w} {h}");
-                println!("render_size {} {}", t.width, t.height);
-                println!("samples {}", self.gpu.acc.samples);
-                println!("variant {}", self.variant_label());
-                println!("adapter {}", self.gpu.ctx.adapter_name());
-                let result: ShotResult = Arc::default();
-                let slot = result.clone();
-                let repaint = ctx.clone();
-                ctx.request_screenshot(move |img| {
-                    let saved = save_screenshot(&img, &path).map_err(|e| format!("{e:#}"));
-                    *slot.lock().expect("screenshot lock") = Some(saved);
-                    repaint.request_repaint();
-                });
-                self.shot = Some(Shot::Requested { at: Instant::now(), result });
-            }
-            Some(Shot::Requested { at, result }) => {
-                let done = result.lock().expect("screenshot lock").take();
-                match done {
-                    Some(Ok(())) => {
-                        println!("wrote {}", path.display());
-                        self.print_timings();
-                        self.shot = Some(Shot::Closing);
-                    }
-                    Some(Err(e)) => {
-                        *self.failure.lock().expect("failure lock") = Some(anyhow!("saving the screenshot: {e}"));
-                        self.shot = Some(Shot::Closing);
-                    }
-                    None if at.elapsed() > Duration::from_secs(30) => {
-                        *self.failure.lock().expect("failure lock") =
-                            Some(anyhow!("no screenshot arrived within 30 s"));
-                        self.shot = Some(Shot::Closing);
-                    }
-                    None => ctx.request_repaint_after(Duration::from_millis(20)),
-                }
-            }
-            _ => {}
-        }
-        if matches!(self.shot, Some(Shot::Closing)) {
-            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
-        } else {
-            ctx.request_repaint();
-        }
-    }
-
-    fn print_timings(&self) {
-        let mut ui_ms = self.frame_log.clone();
-        ui_ms.sort_by(f64::total_cmp);
-        let median = |v: &[f64]| if v.is_empty() { f64::NAN } else { v[v.len() / 2] };
-        let (gpu_ms, rays) = self.timing_summary();
-        let (w, h) = self.gpu.target.as_ref().map_or((0, 0), |t| (t.width, t.height));
-        println!(
-            "timing: {} frames at {w}x{h}, UI frame median {:.1} ms, GPU per frame median {}, {} M primary rays/s, {} samples",
-            ui_ms.len(),
-            median(&ui_ms),
-            gpu_ms.map_or("-".into(), |m| format!("{m:.1} ms")),
-            rays.map_or("-".into(), |r| format!("{:.2}", r / 1e6)),
-            self.gpu.acc.samples
-        );
-    }
-}
-
-/// Colour of a per-pixel difference of `d` 8-bit codes in the comparison image.
-fn diff_colour(d: u8) -> [u8; 3] {
-    match d {
-        0 => [0, 0, 0],
-        1 => [90, 90, 90],
-        _ => [(96 + 16 * d as u32).min(255) as u8, 0, 0],
-    }
-}
-
-fn save_screenshot(img: &egui::ColorImage, path: &Path) -> Result<()> {
-    let [w, h] = img.size;
-    let rgb: Vec<u8> = img.pixels.iter().flat_map(|c| [c.r(), c.g(), c.b()]).collect();
-    let img = image::RgbImage::from_raw(w as u32, h as u32, rgb).context("screenshot size")?;
-    crate::image::save_encoded(&img, image::ImageFormat::Png, path)
 }
 
 impl eframe::App for Viewer {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
-        let now = Instant::now();
-        if let Some(prev) = self.last_ui {
-            let dt = (now - prev).as_secs_f64() * 1e3;
-            if self.worked_last_frame && dt < 1000.0 {
-                self.frame_ms = if self.frame_ms == 0.0 { dt } else { 0.9 * self.frame_ms + 0.1 * dt };
-                self.frame_log.push(dt);
-                self.adapt_budget(dt);
-            } else if !self.worked_last_frame {
-                self.frame_ms = 0.0;
-            }
-        }
-        self.last_ui = Some(now);
+        self.pacer.frame_started(Instant::now(), self.gpu.timings.back());
         self.gpu.poll_timings();
-        self.poll_jobs(&ctx);
+        self.poll_reload();
+        self.poll_compile();
+        self.poll_comparison(&ctx);
         if self.watcher.changed() {
             self.start_reload();
         }
@@ -958,7 +478,7 @@ impl eframe::App for Viewer {
             }
             ctx.request_repaint();
         }
-        if self.worked_last_frame || (self.gpu.acc.samples < self.max_samples && self.gpu_error.is_none()) {
+        if self.pacer.worked_last_frame || (self.gpu.acc.samples < self.max_samples && self.gpu_error.is_none()) {
             ctx.request_repaint();
         }
         let busy = self.load_job.is_some()
