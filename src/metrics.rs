@@ -1,6 +1,7 @@
 //! Image comparison: how far one rendering is from another.
 
 use crate::image::Image;
+use anyhow::{Result, bail, ensure};
 
 /// Agreement of two images as 8-bit sRGB, the form a viewer sees.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,9 +42,110 @@ pub fn mean_flip(reference: &Image, test: &Image) -> f32 {
     nv_flip::FlipPool::from_image(&err).mean()
 }
 
+/// Errors of an image against a reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Errors {
+    /// Root mean square error over all pixel channels, linear radiance.
+    pub rmse: f64,
+    /// RMSE of both images clamped to [0, 1], as the `rmse_clamped` of Mitsuba comparisons.
+    pub rmse_clamped: f64,
+    /// Relative MSE: mean over channels of (x − r)² / (r² + ε), ε = [`REL_MSE_EPSILON`].
+    pub rel_mse: f64,
+    /// Mean FLIP error of the 8-bit sRGB images ([`mean_flip`]).
+    pub mean_flip: f64,
+}
+
+/// The ε of the relative MSE, (x − r)² / (r² + ε): 0.01, the usual choice (Rousselle et al.
+/// 2011, "Adaptive sampling and reconstruction using greedy error minimization"), which keeps
+/// dark pixels from dominating.
+pub const REL_MSE_EPSILON: f64 = 0.01;
+
+/// Errors of `test` against `reference`. Fails when the sizes differ or when either image
+/// has non-finite pixels (they would make every metric NaN).
+pub fn errors(reference: &Image, test: &Image) -> Result<Errors> {
+    if (reference.width, reference.height) != (test.width, test.height) {
+        bail!("image is {}x{}, the reference is {}x{}", test.width, test.height, reference.width, reference.height);
+    }
+    ensure!(
+        reference.pixels.len() == reference.width as usize * reference.height as usize
+            && test.pixels.len() == reference.pixels.len(),
+        "image buffers do not hold width x height pixels"
+    );
+    for (what, img) in [("reference", reference), ("image", test)] {
+        let bad = img.non_finite_count();
+        ensure!(bad == 0, "the {what} has {bad} non-finite (NaN or infinite) pixels of {}", img.pixels.len());
+    }
+    let (mut se, mut se_clamped, mut rel) = (0.0f64, 0.0f64, 0.0f64);
+    for (r, t) in reference.pixels.iter().flatten().zip(test.pixels.iter().flatten()) {
+        let (r, t) = (*r as f64, *t as f64);
+        let d = t - r;
+        se += d * d;
+        let dc = t.clamp(0.0, 1.0) - r.clamp(0.0, 1.0);
+        se_clamped += dc * dc;
+        rel += d * d / (r * r + REL_MSE_EPSILON);
+    }
+    let n = (reference.pixels.len() * 3).max(1) as f64;
+    Ok(Errors {
+        rmse: (se / n).sqrt(),
+        rmse_clamped: (se_clamped / n).sqrt(),
+        rel_mse: rel / n,
+        mean_flip: if reference.pixels.is_empty() { 0.0 } else { mean_flip(reference, test) as f64 },
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A smooth image in [0.3, 0.7].
+    fn gradient(w: u32, h: u32) -> Image {
+        let mut img = Image::new(w, h);
+        for (i, p) in img.pixels.iter_mut().enumerate() {
+            let (x, y) = ((i as u32 % w) as f32 / w as f32, (i as u32 / w) as f32 / h as f32);
+            *p = [0.3 + 0.4 * x, 0.5, 0.3 + 0.4 * y];
+        }
+        img
+    }
+
+    #[test]
+    fn identical_images_have_zero_error() {
+        let a = gradient(16, 8);
+        let e = errors(&a, &a.clone()).unwrap();
+        assert_eq!(e, Errors { rmse: 0.0, rmse_clamped: 0.0, rel_mse: 0.0, mean_flip: 0.0 });
+    }
+
+    #[test]
+    fn a_constant_offset_gives_the_exact_errors() {
+        let mut r = Image::new(4, 4);
+        for p in &mut r.pixels {
+            *p = [0.5, 0.25, 0.9];
+        }
+        let mut t = r.clone();
+        for p in &mut t.pixels {
+            *p = p.map(|c| c + 0.125);
+        }
+        let e = errors(&r, &t).unwrap();
+        assert!((e.rmse - 0.125).abs() < 1e-7, "{e:?}");
+        // 0.9 + 0.125 clamps to 1: that channel differs by 0.1 only.
+        let clamped = ((2.0 * 0.125f64.powi(2) + 0.1f64.powi(2)) / 3.0).sqrt();
+        assert!((e.rmse_clamped - clamped).abs() < 1e-6, "{e:?}");
+        let rel = [0.5f64, 0.25, 0.9].iter().map(|r| 0.125f64.powi(2) / (r * r + 0.01)).sum::<f64>() / 3.0;
+        assert!((e.rel_mse - rel).abs() < 1e-6, "{e:?}");
+        assert!(e.mean_flip > 0.0);
+    }
+
+    #[test]
+    fn size_mismatch_and_non_finite_pixels_are_errors() {
+        let msg = errors(&Image::new(4, 3), &Image::new(3, 4)).unwrap_err().to_string();
+        assert!(msg.contains("3x4") && msg.contains("4x3"), "{msg}");
+        let mut t = Image::new(4, 3);
+        t.pixels[2][1] = f32::NAN;
+        t.pixels[5][0] = f32::INFINITY;
+        let msg = errors(&Image::new(4, 3), &t).unwrap_err().to_string();
+        assert!(msg.contains("2 non-finite"), "{msg}");
+        let msg = errors(&t, &Image::new(4, 3)).unwrap_err().to_string();
+        assert!(msg.contains("reference has 2"), "{msg}");
+    }
 
     #[test]
     fn identical_images_agree_and_a_changed_one_does_not() {

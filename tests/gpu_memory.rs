@@ -33,7 +33,7 @@ fn memory_stays_flat_over_thousands_of_sample_passes() {
     // Progressive path tracing (the viewer's and converge's passes): 1024 passes measured
     // after a warm-up that compiles the pipeline and fills the allocators.
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
-    let mut p = render::Progressive::new(ctx.clone(), buffers, frame).unwrap();
+    let mut p = render::PathAccumulator::new(ctx.clone(), buffers, frame).unwrap();
     p.add_samples(64).unwrap();
     let before = rss_kib();
     for _ in 0..16 {

@@ -7,7 +7,7 @@ use common::gpu;
 use std::path::Path;
 use std::sync::Arc;
 use strahl::backend::cpu;
-use strahl::backend::gpu::{GpuContext, SceneBuffers, render::Progressive};
+use strahl::backend::gpu::{GpuContext, SceneBuffers, render::PathAccumulator};
 use strahl::gpu_types::GpuFrame;
 use strahl::image::Image;
 use strahl::render::Prepared;
@@ -63,14 +63,14 @@ fn mean_and_error(img: &Image) -> (f64, f64) {
 }
 
 fn cpu_image(prep: &Arc<Prepared>, frame: GpuFrame, spp: u32) -> Image {
-    let mut p = cpu::Progressive::new(prep.clone(), frame);
+    let mut p = cpu::PathAccumulator::new(prep.clone(), frame);
     p.add_samples(spp);
     p.image()
 }
 
 fn gpu_image(ctx: &Arc<GpuContext>, prep: &Prepared, frame: GpuFrame, spp: u32) -> Image {
     let buffers = SceneBuffers::upload(ctx, &prep.gpu).unwrap();
-    let mut p = Progressive::new(ctx.clone(), buffers, frame).unwrap();
+    let mut p = PathAccumulator::new(ctx.clone(), buffers, frame).unwrap();
     p.add_samples(spp).unwrap();
     p.image().unwrap()
 }
@@ -374,11 +374,11 @@ fn wavefront_and_megakernel_render_the_same_image() {
         assert_eq!(differing, 0, "{what}: {differing} of {} pixels differ", a.pixels.len());
     };
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
-    let mut wf = Progressive::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Wavefront).unwrap();
+    let mut wf = PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Wavefront).unwrap();
     assert_eq!(wf.kernels(), PathKernels::Wavefront);
     wf.add_samples(2).unwrap();
     wf.add_samples(3).unwrap();
-    let mut mega = Progressive::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Megakernel).unwrap();
+    let mut mega = PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Megakernel).unwrap();
     mega.add_samples(5).unwrap();
     same("progressive", &wf.image().unwrap(), &mega.image().unwrap());
     let (one_shot, _) =

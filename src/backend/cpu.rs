@@ -28,16 +28,16 @@ pub fn render(prep: &Prepared, frame: &GpuFrame, mode: RenderMode, progress: &(d
     img
 }
 
-/// Progressive path tracing on the CPU: per-pixel sums that grow by whole sample passes, in
+/// PathAccumulator path tracing on the CPU: per-pixel sums that grow by whole sample passes, in
 /// the order the GPU's passes add them.
-pub struct Progressive {
+pub struct PathAccumulator {
     prep: Arc<Prepared>,
     frame: GpuFrame,
     sums: Vec<[f32; 3]>,
     samples: u32,
 }
 
-impl Progressive {
+impl PathAccumulator {
     /// An empty accumulation for `frame` (whole image; its `spp` and `sample_base` are ignored).
     pub fn new(prep: Arc<Prepared>, frame: GpuFrame) -> Self {
         let n = frame.width as usize * frame.height as usize;
@@ -79,6 +79,26 @@ impl Progressive {
             *p = s.map(|c| c * k);
         }
         img
+    }
+}
+
+/// The CPU backend's progressive path tracer.
+impl super::Progressive for PathAccumulator {
+    fn label(&self) -> String {
+        format!("cpu ({} threads)", rayon::current_num_threads())
+    }
+    fn backend(&self) -> &'static str {
+        "cpu"
+    }
+    fn add_samples(&mut self, n: u32) -> anyhow::Result<()> {
+        PathAccumulator::add_samples(self, n);
+        Ok(())
+    }
+    fn samples(&self) -> u32 {
+        PathAccumulator::samples(self)
+    }
+    fn image(&mut self) -> anyhow::Result<Image> {
+        Ok(PathAccumulator::image(self))
     }
 }
 

@@ -21,7 +21,7 @@ use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use strahl::backend::gpu::render::{Progressive, render, render_tiles};
+use strahl::backend::gpu::render::{PathAccumulator, render, render_tiles};
 use strahl::backend::gpu::wavefront::Wavefront;
 use strahl::backend::gpu::{FeatureKey, GpuContext, PathKernels, SceneBuffers};
 use strahl::gpu_types::GpuFrame;
@@ -272,10 +272,10 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
         let key = buffers.key;
         // Compile (lavapipe compiles at the first dispatch), then per-kernel GPU times from one
         // render with timestamp queries.
-        let mega = Progressive::with_kernels(ctx.clone(), buffers.clone(), prep.frame(8, 8), PathKernels::Megakernel);
+        let mega = PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), prep.frame(8, 8), PathKernels::Megakernel);
         mega?.add_samples(1)?;
         let (_, stats) = render_tiles(ctx, &buffers, &frame, RenderMode::Path, key, &|_, _| {})?;
-        let mut progressive = Progressive::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Megakernel)?;
+        let mut progressive = PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Megakernel)?;
         let wall = median_time(a.frames, || {
             progressive.reset();
             progressive.add_samples(a.spp)?;
@@ -285,7 +285,7 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
         if ctx.has_wavefront() {
             let wf = Wavefront::new(ctx, buffers.clone(), key, frame)?;
             let (_, times) = wf.render(ctx, &|_, _| {})?;
-            let mut progressive = Progressive::with_kernels(ctx.clone(), buffers, frame, PathKernels::Wavefront)?;
+            let mut progressive = PathAccumulator::with_kernels(ctx.clone(), buffers, frame, PathKernels::Wavefront)?;
             let wall = median_time(a.frames, || {
                 progressive.reset();
                 progressive.add_samples(a.spp)?;

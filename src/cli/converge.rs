@@ -240,11 +240,11 @@ fn open_backend(
     let mut frame = prep.frame(width, height);
     frame.seed = seed;
     Ok(match backend {
-        BackendChoice::Cpu => Box::new(cpu::Progressive::new(prep.clone(), frame)),
+        BackendChoice::Cpu => Box::new(cpu::PathAccumulator::new(prep.clone(), frame)),
         BackendChoice::Gpu => {
             let ctx = Arc::new(GpuContext::new()?);
             let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
-            let mut p = gpu::render::Progressive::new(ctx, buffers, frame)?;
+            let mut p = gpu::render::PathAccumulator::new(ctx, buffers, frame)?;
             // lavapipe compiles the shader at its first dispatch.
             p.add_samples(1)?;
             p.reset();

@@ -150,23 +150,23 @@ pub fn render_tiles(
     Ok((img, stats))
 }
 
-/// Progressive path tracing on the GPU: the whole image's sums live in one output buffer that
+/// PathAccumulator path tracing on the GPU: the whole image's sums live in one output buffer that
 /// each sample pass adds to, so the image can be read at any time. The passes run as the
 /// megakernel (one dispatch per tile) or as the wavefront tracer, whichever
 /// [`GpuContext::path_kernels`] picks for the device.
-pub struct Progressive {
+pub struct PathAccumulator {
     ctx: Arc<GpuContext>,
     frame: GpuFrame,
-    kernels: ProgressiveKernels,
+    kernels: AccumulatorKernels,
     samples: u32,
 }
 
-enum ProgressiveKernels {
+enum AccumulatorKernels {
     Megakernel { scene: SceneBuffers, pipeline: Arc<CachedPipeline>, output: wgpu::Buffer, out_group: wgpu::BindGroup },
     Wavefront(Box<Wavefront>),
 }
 
-impl Progressive {
+impl PathAccumulator {
     /// Compiles (or takes from the cache) the path kernels for the scene's key and allocates
     /// the sums for `frame` (whole image; its `spp` and `sample_base` are ignored), with the
     /// kernels this device runs best. Fails, before allocating, when the image does not fit one
@@ -176,7 +176,7 @@ impl Progressive {
         Self::with_kernels(ctx, scene, frame, kernels)
     }
 
-    /// [`Progressive::new`] with the given kernels.
+    /// [`PathAccumulator::new`] with the given kernels.
     pub fn with_kernels(
         ctx: Arc<GpuContext>,
         scene: SceneBuffers,
@@ -190,7 +190,7 @@ impl Progressive {
                 let key = scene.key;
                 let wf = Wavefront::new(&ctx, scene, key, frame)?;
                 wf.check_whole_image(&ctx)?;
-                ProgressiveKernels::Wavefront(Box::new(wf))
+                AccumulatorKernels::Wavefront(Box::new(wf))
             }
             PathKernels::Megakernel => {
                 let (program, entry) = program_for(RenderMode::Path);
@@ -202,7 +202,7 @@ impl Progressive {
                     mapped_at_creation: false,
                 });
                 let out_group = ctx.output_bind_group(&output);
-                ProgressiveKernels::Megakernel { scene, pipeline, output, out_group }
+                AccumulatorKernels::Megakernel { scene, pipeline, output, out_group }
             }
         };
         Ok(Self { ctx, frame, kernels, samples: 0 })
@@ -215,16 +215,16 @@ impl Progressive {
     /// The kernels the passes run as.
     pub fn kernels(&self) -> PathKernels {
         match self.kernels {
-            ProgressiveKernels::Megakernel { .. } => PathKernels::Megakernel,
-            ProgressiveKernels::Wavefront(_) => PathKernels::Wavefront,
+            AccumulatorKernels::Megakernel { .. } => PathKernels::Megakernel,
+            AccumulatorKernels::Wavefront(_) => PathKernels::Wavefront,
         }
     }
 
     /// Adds samples `samples() .. samples() + n` to every pixel and waits for the GPU.
     pub fn add_samples(&mut self, n: u32) -> Result<(), GpuError> {
         match &self.kernels {
-            ProgressiveKernels::Wavefront(wf) => wf.submit_passes(&self.ctx, self.samples, n),
-            ProgressiveKernels::Megakernel { scene, pipeline, out_group, .. } => {
+            AccumulatorKernels::Wavefront(wf) => wf.submit_passes(&self.ctx, self.samples, n),
+            AccumulatorKernels::Megakernel { scene, pipeline, out_group, .. } => {
                 let band = Band::whole(self.frame.width, self.frame.height, TILE);
                 for k in 0..n {
                     let mut enc = self.ctx.device.create_command_encoder(&Default::default());
@@ -266,8 +266,8 @@ impl Progressive {
             return Ok(img);
         }
         let output = match &self.kernels {
-            ProgressiveKernels::Megakernel { output, .. } => output,
-            ProgressiveKernels::Wavefront(wf) => wf.output(),
+            AccumulatorKernels::Megakernel { output, .. } => output,
+            AccumulatorKernels::Wavefront(wf) => wf.output(),
         };
         let px: Vec<[f32; 4]> = self.ctx.read_pod(output, img.pixels.len())?;
         let k = 1.0 / self.samples as f32;
@@ -275,6 +275,25 @@ impl Progressive {
             *p = [s[0] * k, s[1] * k, s[2] * k];
         }
         Ok(img)
+    }
+}
+
+/// The GPU backend's progressive path tracer.
+impl crate::backend::Progressive for PathAccumulator {
+    fn label(&self) -> String {
+        format!("gpu ({})", self.context().adapter_info.name)
+    }
+    fn backend(&self) -> &'static str {
+        "gpu"
+    }
+    fn add_samples(&mut self, n: u32) -> anyhow::Result<()> {
+        Ok(PathAccumulator::add_samples(self, n)?)
+    }
+    fn samples(&self) -> u32 {
+        PathAccumulator::samples(self)
+    }
+    fn image(&mut self) -> anyhow::Result<Image> {
+        Ok(PathAccumulator::image(self)?)
     }
 }
 
