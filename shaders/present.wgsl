@@ -1,6 +1,7 @@
 // The viewer's present pass (strahl view): turns the accumulation buffer of the render or
 // view program (sums of samples) into the rgba8unorm texture egui shows, with no trip through
-// the CPU. Standalone: it imports nothing and is compiled as is (src/viewer/gpu.rs).
+// the CPU. Standalone: it imports nothing; only the shared values (#{NAME}) are substituted
+// (host: src/viewer/gpu.rs; no CPU twin, the CPU renders have no present pass).
 //
 // A pixel holds `samples` samples, plus one when its tile (tile × tile pixels, row-major, as
 // render::Band orders them) is among the first `next_tile` tiles of the pass in progress.
@@ -13,7 +14,8 @@ struct Present {
     next_tile: u32,
     tiles_x: u32,
     tile: u32,
-    // 0 Whitted, 1 normals, 2 depth, 3 BVH cost (ViewMode in src/viewer/gpu.rs).
+    // The view mode (ViewMode in src/viewer/gpu.rs): the image modes (Whitted, path) show the
+    // mean colour; VIEW_NORMALS, VIEW_DEPTH and VIEW_COST are the debug views.
     mode: u32,
     pad0: u32,
     // Depth mode: distances shown white (near) to dark (far), by inverse distance.
@@ -23,6 +25,10 @@ struct Present {
     heat_max: f32,
     pad1: f32,
 }
+
+const VIEW_NORMALS: u32 = #{VIEW_NORMALS};
+const VIEW_DEPTH: u32 = #{VIEW_DEPTH};
+const VIEW_COST: u32 = #{VIEW_COST};
 
 // Storage, not uniform, for the reason in bindings.wgsl (one present pass per UI frame).
 @group(0) @binding(0) var<storage, read> p: Present;
@@ -73,18 +79,18 @@ fn present(@builtin(global_invocation_id) gid: vec3<u32>) {
     let coverage = a.w * inv;
     var rgb: vec3<f32>;
     switch p.mode {
-        case 1u: {
+        case VIEW_NORMALS: {
             let nrm = a.xyz / max(a.w, 1.0);
             rgb = (nrm * 0.5 + 0.5) * coverage;
         }
-        case 2u: {
+        case VIEW_DEPTH: {
             // Inverse distance between near and far: more contrast close to the eye.
             let t = max(a.x / max(a.w, 1.0), 1e-20);
             let near = max(p.near, 0.02 * p.far);
             let v = clamp((1.0 / t - 1.0 / p.far) / max(1.0 / near - 1.0 / p.far, 1e-20), 0.0, 1.0);
             rgb = vec3<f32>(0.1 + 0.9 * v) * coverage;
         }
-        case 3u: {
+        case VIEW_COST: {
             rgb = turbo((a.x + a.y) * inv / p.heat_max);
         }
         default: {

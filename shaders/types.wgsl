@@ -12,7 +12,7 @@ struct Frame {
     up: vec3<f32>,
     max_depth: u32,
     background: vec3<f32>,
-    num_planes: u32,
+    pad0: u32,
     ambient: vec3<f32>,
     num_lights: u32,
     tile_origin: vec2<u32>,

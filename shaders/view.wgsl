@@ -14,10 +14,10 @@
 
 @group(1) @binding(0) var<storage, read_write> output: array<vec4<f32>>;
 
-const VIEW_MODE_SHIFT: u32 = 8u;
-const VIEW_NORMALS: u32 = 1u;
-const VIEW_DEPTH: u32 = 2u;
-const VIEW_COST: u32 = 3u;
+const VIEW_MODE_SHIFT: u32 = #{VIEW_MODE_SHIFT};
+const VIEW_NORMALS: u32 = #{VIEW_NORMALS};
+const VIEW_DEPTH: u32 = #{VIEW_DEPTH};
+const VIEW_COST: u32 = #{VIEW_COST};
 
 @compute @workgroup_size(#{TILE_WORKGROUP}, #{TILE_WORKGROUP}, 1)
 fn view(@builtin(global_invocation_id) gid: vec3<u32>) {

@@ -129,7 +129,8 @@ pub struct GpuFrame {
     pub up: [f32; 3],
     pub max_depth: u32,
     pub background: [f32; 3],
-    pub num_planes: u32,
+    /// Padding: `ambient` starts a 16-byte slot as WGSL's vec3 does.
+    pub pad0: u32,
     pub ambient: [f32; 3],
     pub num_lights: u32,
     /// First pixel (x, y) of the tile this dispatch renders.
@@ -157,6 +158,15 @@ pub struct GpuFrame {
 
 /// Frame flag: the dispatch adds its samples' sum to the output buffer.
 pub const FRAME_ACCUMULATE: u32 = 1;
+/// Where `shaders/view.wgsl` finds the viewer's debug mode in [`GpuFrame::flags`] (the mode
+/// shifted left by this), and the modes: the numbers of `ViewMode` in the viewer, shared with
+/// `view.wgsl` and `present.wgsl`.
+pub const VIEW_MODE_SHIFT: u32 = 8;
+pub const VIEW_WHITTED: u32 = 0;
+pub const VIEW_NORMALS: u32 = 1;
+pub const VIEW_DEPTH: u32 = 2;
+pub const VIEW_COST: u32 = 3;
+pub const VIEW_PATH: u32 = 4;
 
 /// Everything a backend needs, flattened: the layout of the GPU's storage buffers.
 #[derive(Clone, Debug, Default)]

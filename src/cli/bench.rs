@@ -272,10 +272,12 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
         let key = buffers.key;
         // Compile (lavapipe compiles at the first dispatch), then per-kernel GPU times from one
         // render with timestamp queries.
-        let mega = PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), prep.frame(8, 8), PathKernels::Megakernel);
+        let mega =
+            PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), prep.frame(8, 8), PathKernels::Megakernel);
         mega?.add_samples(1)?;
         let (_, stats) = render_tiles(ctx, &buffers, &frame, RenderMode::Path, key, &|_, _| {})?;
-        let mut progressive = PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Megakernel)?;
+        let mut progressive =
+            PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Megakernel)?;
         let wall = median_time(a.frames, || {
             progressive.reset();
             progressive.add_samples(a.spp)?;

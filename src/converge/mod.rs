@@ -232,9 +232,6 @@ mod tests {
         }
     }
 
-
-
-
     #[test]
     fn doubling_measures_at_powers_of_two_and_max_spp() {
         assert_eq!(doubling_checkpoints(8), [1, 2, 4, 8]);
@@ -343,10 +340,4 @@ mod tests {
         let msg = measure(&mut p, &reference, &Schedule::Doubling { max_spp: 4 }, &mut |_| Ok(())).unwrap_err();
         assert!(msg.to_string().contains("holds 3 samples per pixel after adding 2 to 2, expected 4"), "{msg}");
     }
-
-
-
-
-
 }
-

@@ -45,7 +45,6 @@ impl Prepared {
         f.max_depth = s.max_depth;
         f.background = s.background.map(|c| c as f32);
         f.ambient = s.ambient.map(|c| c as f32);
-        f.num_planes = self.gpu.planes.len() as u32;
         f.num_lights = self.gpu.lights.len() as u32;
         f.num_emitters = self.gpu.emitters.len() as u32;
         f.emitter_norm = self.gpu.emitter_norm;

@@ -6,7 +6,7 @@
 
 use crate::backend::gpu::render::{Band, record_pass};
 use crate::backend::gpu::{GpuContext, GpuError, Program, SceneBuffers};
-use crate::gpu_types::GpuFrame;
+use crate::gpu_types::{self as g, GpuFrame};
 use crate::image::Image;
 use eframe::egui;
 use eframe::egui_wgpu;
@@ -20,24 +20,27 @@ use std::time::{Duration, Instant};
 /// a 64 × 64 tile of the seed scene costs half as much as a 128 × 128 one, for a quarter of
 /// the pixels, so whole passes took twice as long for a UI only somewhat smoother.)
 pub const VIEW_TILE: u32 = crate::backend::gpu::render::TILE;
-/// Where `shaders/view.wgsl` finds the mode in the frame flags.
-pub const VIEW_MODE_SHIFT: u32 = 8;
-/// The present shader (standalone WGSL).
+/// The present shader (standalone WGSL, before the shared values are substituted).
 pub const PRESENT_WGSL: &str = include_str!("../../shaders/present.wgsl");
+
+/// The present shader as compiled: [`PRESENT_WGSL`] with the shared values in.
+fn present_source() -> String {
+    crate::backend::gpu::shared::substitute(PRESENT_WGSL)
+}
 
 /// What the image shows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
 pub enum ViewMode {
     /// Whitted ray tracing (the render program).
-    Whitted = 0,
+    Whitted = g::VIEW_WHITTED as isize,
     /// Front-face normals of the primary hits, as 0.5 + 0.5·n.
-    Normals = 1,
+    Normals = g::VIEW_NORMALS as isize,
     /// Distance to the primary hit, white (near) to black (far).
-    Depth = 2,
+    Depth = g::VIEW_DEPTH as isize,
     /// BVH nodes visited plus primitives tested per primary ray, as a heat map.
-    Cost = 3,
+    Cost = g::VIEW_COST as isize,
     /// Monte Carlo path tracing (the path program), converging as samples accumulate.
-    Path = 4,
+    Path = g::VIEW_PATH as isize,
 }
 
 impl ViewMode {
@@ -69,7 +72,7 @@ impl ViewMode {
 
     /// The frame flags that select this mode in `view.wgsl` (none for the image modes).
     pub fn flags(self) -> u32 {
-        if self.render_mode().is_some() { 0 } else { (self as u32) << VIEW_MODE_SHIFT }
+        if self.render_mode().is_some() { 0 } else { (self as u32) << g::VIEW_MODE_SHIFT }
     }
 }
 
@@ -204,7 +207,7 @@ impl ViewRenderer {
         let device = &ctx.device;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("present"),
-            source: wgpu::ShaderSource::Wgsl(PRESENT_WGSL.into()),
+            source: wgpu::ShaderSource::Wgsl(present_source().into()),
         });
         let present_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("present"),
@@ -506,7 +509,7 @@ mod tests {
 
     #[test]
     fn the_present_shader_validates_and_its_parameters_match() {
-        let module = naga::front::wgsl::parse_str(PRESENT_WGSL).expect("present.wgsl parses");
+        let module = naga::front::wgsl::parse_str(&present_source()).expect("present.wgsl parses");
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
             .validate(&module)
             .expect("present.wgsl validates");

@@ -382,7 +382,7 @@ mod tests {
                     up,
                     max_depth,
                     background,
-                    num_planes,
+                    pad0,
                     ambient,
                     num_lights,
                     tile_origin,

@@ -65,6 +65,10 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("LIGHT_POINT", U32(g::LIGHT_POINT)),
         ("LIGHT_STAND_IN", U32(g::LIGHT_STAND_IN)),
         ("FRAME_ACCUMULATE", U32(g::FRAME_ACCUMULATE)),
+        ("VIEW_MODE_SHIFT", U32(g::VIEW_MODE_SHIFT)),
+        ("VIEW_NORMALS", U32(g::VIEW_NORMALS)),
+        ("VIEW_DEPTH", U32(g::VIEW_DEPTH)),
+        ("VIEW_COST", U32(g::VIEW_COST)),
         ("QUERY_FOUND", U32(g::QUERY_FOUND)),
         ("QUERY_ENTER", U32(g::QUERY_ENTER)),
         // The GPU BVH layout (accel::gpu_bvh) and its traversal stack.
