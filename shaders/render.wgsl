@@ -1,4 +1,5 @@
-// Render entry point: one invocation per pixel of the dispatched tile.
+// Render entry point: one invocation per pixel of the dispatched tile; twin of
+// src/backend/cpu.rs (render, one pixel per iteration over rayon's rows).
 #import strahl::types::{FRAME_ACCUMULATE}
 #import strahl::bindings::frame
 #import strahl::shade::shade_pixel_sum

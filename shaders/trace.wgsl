@@ -1,4 +1,4 @@
-// Ray-query entry points (`strahl trace --backend gpu`): twin of backend::cpu::trace.
+// Ray-query entry points (`strahl trace --backend gpu`): twin of src/backend/cpu.rs (trace).
 //
 // trace_nearest: one QueryHit per ray. Every-hit mode runs two passes: trace_count writes
 // each ray's hit count to `offsets`; the host turns the counts into exclusive offsets; then

@@ -1,12 +1,13 @@
 // The viewer's debug images (strahl view): one invocation per pixel of the dispatched tile,
 // like render.wgsl, one primary ray per dispatch (sample frame.sample_base), written or added
 // (FRAME_ACCUMULATE) to the same output buffer. shaders/present.wgsl turns the sums into colours.
+// No CPU twin: the debug views exist only in the viewer (host: src/viewer/gpu.rs).
 //
 // The mode is frame.flags >> VIEW_MODE_SHIFT (src/viewer/gpu.rs: ViewMode):
 //   normals: (front-face unit normal, 1) where the ray hits, 0 where it misses;
 //   depth:   (t, 0, 0, 1) where it hits, 0 where it misses;
 //   cost:    (BVH nodes visited, primitives tested, 0, 1) by the nearest-hit search.
-// Composed with COUNT_VISITS (shaders/traverse.wgsl counts its work) and the geometry flags only.
+// Composed with COUNT_VISITS (shaders/modules/traverse.wgsl counts its work) and the geometry flags only.
 #import strahl::types::{FRAME_ACCUMULATE, F32_MAX}
 #import strahl::bindings::frame
 #import strahl::raygen::{primary_ray, tile_pixel, output_index}

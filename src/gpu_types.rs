@@ -1,5 +1,5 @@
 //! The buffers the GPU reads, as `#[repr(C)]` + [`bytemuck::Pod`] structs whose layout equals
-//! the WGSL structs in `shaders/types.wgsl` (a test checks every size and offset through
+//! the WGSL structs in `shaders/modules/types.wgsl` (a test checks every size and offset through
 //! naga's layouter). The CPU renderer reads the same structs, so both backends shade from
 //! identical f32 data.
 //!
@@ -113,7 +113,7 @@ pub struct GpuEmitter {
 }
 
 /// Per-dispatch parameters: the camera frame, image and tile, and render settings (bound as a
-/// read-only storage buffer, see `shaders/bindings.wgsl`).
+/// read-only storage buffer, see `shaders/modules/bindings.wgsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuFrame {
@@ -130,7 +130,7 @@ pub struct GpuFrame {
     pub max_depth: u32,
     pub background: [f32; 3],
     /// Padding: `ambient` starts a 16-byte slot as WGSL's vec3 does.
-    pub pad0: u32,
+    pub _pad: u32,
     pub ambient: [f32; 3],
     pub num_lights: u32,
     /// First pixel (x, y) of the tile this dispatch renders.

@@ -5,7 +5,8 @@ use crate::math::V3;
 use crate::primitives::{PrimRef, Primitives};
 use bytemuck::{Pod, Zeroable};
 
-/// One node, 32 bytes, the layout of `BvhNode` in `shaders/types.wgsl`.
+/// One node of the binary tree, 32 bytes: the tree the CPU walks ([`super::traverse`]) and
+/// [`super::gpu_bvh`] collapses into the nodes the GPU walks.
 ///
 /// Interior node (`count == 0`): its left child is the next node in the array, its right
 /// child is node `left_or_first`. Leaf (`count > 0`): primitives

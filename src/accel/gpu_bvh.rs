@@ -7,7 +7,7 @@
 //! (lavapipe: 8 lanes), memory fetches with a different address per lane are the dominant cost
 //! of traversal, and this layout makes fewer and smaller ones.
 //!
-//! [`nearest`] and [`all`] walk it exactly as `shaders/traverse.wgsl` and `shaders/trace.wgsl`
+//! [`nearest`] and [`all`] walk it exactly as `shaders/modules/traverse.wgsl` and `shaders/trace.wgsl`
 //! do, so a GPU/CPU difference can be bisected to the traversal; the CPU renderer itself walks
 //! the binary tree ([`super::traverse`]). Both return exactly what brute force returns (the tie
 //! rule of [`Nearest`] makes the visiting order irrelevant).
@@ -36,12 +36,12 @@ pub const LINK_FIRST_MASK: u32 = (1 << LINK_COUNT_SHIFT) - 1;
 pub const LINK_EMPTY: u32 = u32::MAX;
 /// The most primitives (triangles, or spheres and cylinders) the layout indexes.
 pub const MAX_PRIMS: usize = LINK_FIRST_MASK as usize - LEAF_MAX;
-/// Deepest tree the traversal stack holds (`GPU_STACK` in `shaders/traverse.wgsl`): the binary
+/// Deepest tree the traversal stack holds (`GPU_STACK` in `shaders/modules/traverse.wgsl`): the binary
 /// tree's [`super::bvh::MAX_DEPTH`] plus the levels the collapse may add below a leaf.
 pub const MAX_DEPTH: u32 = 64;
 
 /// One node: the boxes and links of its two children (a and b), 64 bytes, the layout of
-/// `Node` in `shaders/types.wgsl`.
+/// `Node` in `shaders/modules/types.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuNode {
@@ -57,7 +57,7 @@ pub struct GpuNode {
 
 /// A triangle in leaf order: its vertices, its index in the scene-order triangle array (which
 /// names it in hits and breaks ties) and its material (so that shading a hit fetches nothing
-/// more), 48 bytes, `LeafTriangle` in `shaders/types.wgsl`.
+/// more), 48 bytes, `LeafTriangle` in `shaders/modules/types.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLeafTriangle {
@@ -238,7 +238,7 @@ impl GpuBvh {
 /// Entry distance of the ray into the box (lo, hi) within [tmin, tmax], or -1: the slab test
 /// of [`super::traverse::slab`] (an axis the ray runs parallel to, `inv` 0, bounds nothing while
 /// the origin lies within the box on it and rules the box out otherwise), as `slab` in
-/// `shaders/traverse.wgsl` computes it.
+/// `shaders/modules/traverse.wgsl` computes it.
 #[inline]
 pub fn slab(lo: &[f32; 3], hi: &[f32; 3], o: V3<f32>, inv: V3<f32>, tmin: f32, tmax: f32) -> f32 {
     // SLAB_GROW in traverse.wgsl.
@@ -261,7 +261,7 @@ pub fn slab(lo: &[f32; 3], hi: &[f32; 3], o: V3<f32>, inv: V3<f32>, tmin: f32, t
 }
 
 /// Calls `leaf(link)` for every leaf whose box the ray enters within [tmin, bound()], nearer
-/// child first, as `nearest_hit` in `shaders/traverse.wgsl` orders them.
+/// child first, as `nearest_hit` in `shaders/modules/traverse.wgsl` orders them.
 fn walk(bvh: &GpuBvh, ray: &Ray<f32>, tmin: f32, bound: &mut dyn FnMut() -> f32, leaf: &mut dyn FnMut(Link)) {
     if bvh.nodes.is_empty() {
         return;
@@ -336,7 +336,7 @@ pub fn nearest(bvh: &GpuBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32,
 }
 
 /// Whether anything lies in (tmin, tmax) along the ray: the walk of [`nearest`] ended at the
-/// first hit it meets (`occluded` in `shaders/traverse.wgsl`, for shadow rays).
+/// first hit it meets (`occluded` in `shaders/modules/traverse.wgsl`, for shadow rays).
 pub fn occluded(bvh: &GpuBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32) -> bool {
     let mut best = Nearest::new(tmax);
     for r in prims.plane_refs() {

@@ -1,5 +1,5 @@
 //! BVH traversal of the binary tree, as the CPU renderer runs it; the GPU walks the collapsed
-//! tree of [`super::gpu_bvh`] (whose walk is the twin of `shaders/traverse.wgsl`). Both return
+//! tree of [`super::gpu_bvh`] (whose walk is the twin of `shaders/modules/traverse.wgsl`). Both return
 //! exactly what brute force returns.
 
 use super::bvh::{Bvh, BvhNode, MAX_DEPTH};

@@ -14,7 +14,7 @@
 //! one for Russian roulette when it applies; and add to a path's radiance in the same order:
 //! emission, point and directional lights, the area-light sample.
 //!
-//! The stages are those of `shaders/path_vertex.wgsl` ([`PathState`], [`shade_vertex`],
+//! The stages are those of `shaders/modules/path_vertex.wgsl` ([`PathState`], [`shade_vertex`],
 //! [`NeeRay`]), which the GPU's megakernel (`path.wgsl`, like [`radiance`] here) and its
 //! wavefront tracer (`wavefront.wgsl`) both run.
 
@@ -60,7 +60,7 @@ pub fn camera_ray(inp: &ShadeInputs, x: u32, y: u32, s: u32) -> Ray<f32> {
     ray_through(f, x, y, ox, oy)
 }
 
-/// A path between vertices (`PathState` in `shaders/path_vertex.wgsl`).
+/// A path between vertices (`PathState` in `shaders/modules/path_vertex.wgsl`).
 #[derive(Clone, Copy, Debug)]
 pub struct PathState {
     pub ray: Ray<f32>,
@@ -79,7 +79,7 @@ impl PathState {
     }
 }
 
-/// A vertex's area-light sample (`NeeRay` in `shaders/path_vertex.wgsl`): the shadow ray, up to
+/// A vertex's area-light sample (`NeeRay` in `shaders/modules/path_vertex.wgsl`): the shadow ray, up to
 /// `dist`, and the radiance it adds to the path when nothing blocks it.
 #[derive(Clone, Copy, Debug)]
 pub struct NeeRay {
@@ -89,7 +89,7 @@ pub struct NeeRay {
 }
 
 /// Shades the vertex where segment `p.seg` of path `p` meets `hit` (`None`: the ray leaves the
-/// scene), as `shade_vertex` in `shaders/path_vertex.wgsl`: adds the emission there and each
+/// scene), as `shade_vertex` in `shaders/modules/path_vertex.wgsl`: adds the emission there and each
 /// point and directional light to `p.sum`, returns the area-light sample in `nee` (for the
 /// caller to trace), samples the BSDF and plays Russian roulette. Returns whether the path goes
 /// on (`p` then holds its next ray).

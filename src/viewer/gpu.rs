@@ -515,9 +515,38 @@ mod tests {
             .expect("present.wgsl validates");
         let mut layouter = naga::proc::Layouter::default();
         layouter.update(module.to_ctx()).unwrap();
-        let (h, _) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("Present")).expect("Present");
+        let (h, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("Present")).expect("Present");
         assert_eq!(layouter[h].size as usize, std::mem::size_of::<PresentParams>());
-        // A uniform here would leak on lavapipe 22 (see shaders/bindings.wgsl).
+        // Every member, in order and at the offset of the Rust field of the same name (Rust's
+        // padding is `_pad0`, WGSL's `pad0`); the Rust fields as written in this file.
+        let naga::TypeInner::Struct { members, .. } = &ty.inner else { panic!("Present is a struct") };
+        let source = include_str!("gpu.rs");
+        let body = source.split_once("pub struct PresentParams {").expect("PresentParams").1;
+        let body = &body[..body.find("\n}").expect("closing brace")];
+        let rust: Vec<&str> =
+            body.lines().filter_map(|l| l.trim().strip_prefix("pub ")?.split_once(':')).map(|(f, _)| f).collect();
+        let wgsl: Vec<&str> = members.iter().map(|m| m.name.as_deref().unwrap_or("")).collect();
+        assert_eq!(rust.iter().map(|f| f.trim_start_matches('_')).collect::<Vec<_>>(), wgsl);
+        use std::mem::offset_of;
+        let offsets = [
+            offset_of!(PresentParams, width),
+            offset_of!(PresentParams, height),
+            offset_of!(PresentParams, samples),
+            offset_of!(PresentParams, next_tile),
+            offset_of!(PresentParams, tiles_x),
+            offset_of!(PresentParams, tile),
+            offset_of!(PresentParams, mode),
+            offset_of!(PresentParams, _pad0),
+            offset_of!(PresentParams, near),
+            offset_of!(PresentParams, far),
+            offset_of!(PresentParams, heat_max),
+            offset_of!(PresentParams, _pad1),
+        ];
+        assert_eq!(offsets.len(), members.len());
+        for (m, o) in members.iter().zip(offsets) {
+            assert_eq!(m.offset as usize, o, "offset of Present.{:?}", m.name);
+        }
+        // A uniform here would leak on lavapipe 22 (see shaders/modules/bindings.wgsl).
         assert!(module.global_variables.iter().all(|(_, g)| g.space != naga::AddressSpace::Uniform));
     }
 

@@ -148,7 +148,7 @@ impl GpuContext {
         let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let device_flags =
             if device.features().contains(wgpu::Features::SHADER_INT64) { FeatureKey::LOAD64 } else { 0 };
-        // Binding 0 is the frame: storage, not uniform (see shaders/bindings.wgsl).
+        // Binding 0 is the frame: storage, not uniform (see shaders/modules/bindings.wgsl).
         let scene_entries: Vec<_> = (0..SCENE_BINDINGS).map(|b| storage_entry(b, true)).collect();
         let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),

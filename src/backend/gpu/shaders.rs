@@ -12,21 +12,21 @@ use crate::scene::MaterialKind;
 
 /// The shared modules, in import order (each may import only those before it).
 pub const MODULES: &[(&str, &str)] = &[
-    ("shaders/types.wgsl", include_str!("../../../shaders/types.wgsl")),
-    ("shaders/bindings.wgsl", include_str!("../../../shaders/bindings.wgsl")),
-    ("shaders/roots.wgsl", include_str!("../../../shaders/roots.wgsl")),
-    ("shaders/sphere.wgsl", include_str!("../../../shaders/sphere.wgsl")),
-    ("shaders/cylinder.wgsl", include_str!("../../../shaders/cylinder.wgsl")),
-    ("shaders/plane.wgsl", include_str!("../../../shaders/plane.wgsl")),
-    ("shaders/triangle.wgsl", include_str!("../../../shaders/triangle.wgsl")),
-    ("shaders/traverse.wgsl", include_str!("../../../shaders/traverse.wgsl")),
-    ("shaders/spawn.wgsl", include_str!("../../../shaders/spawn.wgsl")),
-    ("shaders/raygen.wgsl", include_str!("../../../shaders/raygen.wgsl")),
-    ("shaders/shade.wgsl", include_str!("../../../shaders/shade.wgsl")),
-    ("shaders/sampler.wgsl", include_str!("../../../shaders/sampler.wgsl")),
-    ("shaders/bsdf.wgsl", include_str!("../../../shaders/bsdf.wgsl")),
-    ("shaders/emitters.wgsl", include_str!("../../../shaders/emitters.wgsl")),
-    ("shaders/path_vertex.wgsl", include_str!("../../../shaders/path_vertex.wgsl")),
+    ("shaders/modules/types.wgsl", include_str!("../../../shaders/modules/types.wgsl")),
+    ("shaders/modules/bindings.wgsl", include_str!("../../../shaders/modules/bindings.wgsl")),
+    ("shaders/modules/roots.wgsl", include_str!("../../../shaders/modules/roots.wgsl")),
+    ("shaders/modules/sphere.wgsl", include_str!("../../../shaders/modules/sphere.wgsl")),
+    ("shaders/modules/cylinder.wgsl", include_str!("../../../shaders/modules/cylinder.wgsl")),
+    ("shaders/modules/plane.wgsl", include_str!("../../../shaders/modules/plane.wgsl")),
+    ("shaders/modules/triangle.wgsl", include_str!("../../../shaders/modules/triangle.wgsl")),
+    ("shaders/modules/traverse.wgsl", include_str!("../../../shaders/modules/traverse.wgsl")),
+    ("shaders/modules/spawn.wgsl", include_str!("../../../shaders/modules/spawn.wgsl")),
+    ("shaders/modules/raygen.wgsl", include_str!("../../../shaders/modules/raygen.wgsl")),
+    ("shaders/modules/shade.wgsl", include_str!("../../../shaders/modules/shade.wgsl")),
+    ("shaders/modules/sampler.wgsl", include_str!("../../../shaders/modules/sampler.wgsl")),
+    ("shaders/modules/bsdf.wgsl", include_str!("../../../shaders/modules/bsdf.wgsl")),
+    ("shaders/modules/emitters.wgsl", include_str!("../../../shaders/modules/emitters.wgsl")),
+    ("shaders/modules/path_vertex.wgsl", include_str!("../../../shaders/modules/path_vertex.wgsl")),
 ];
 
 /// A top-level shader and its entry points.
@@ -173,15 +173,15 @@ fn compose_error(e: &ComposerError) -> String {
     format!("{e:?}")
 }
 
-/// The text of shader `file` (a path like `shaders/types.wgsl`) with the shared values
-/// substituted ([`super::shared`]): the text built into the binary, or, when the environment
-/// variable `STRAHL_SHADER_DIR` names a folder, the file of that name in it, so that shaders can
-/// be edited and measured without rebuilding.
+/// The text of shader `file` (a path like `shaders/modules/types.wgsl`) with the shared
+/// values substituted ([`super::shared`]): the text built into the binary, or, when the
+/// environment variable `STRAHL_SHADER_DIR` names a folder laid out like `shaders/`, the file
+/// at the same place in it, so that shaders can be edited and measured without rebuilding.
 fn source_text(file: &str, built_in: &'static str) -> Result<String, ShaderError> {
     let text = match std::env::var_os("STRAHL_SHADER_DIR") {
         None => built_in.to_string(),
         Some(dir) => {
-            let name = std::path::Path::new(file).file_name().expect("shader paths name a file");
+            let name = file.strip_prefix("shaders/").expect("shader paths start with shaders/");
             let path = std::path::Path::new(&dir).join(name);
             std::fs::read_to_string(&path)
                 .map_err(|e| ShaderError::Compose { file: path.display().to_string(), message: e.to_string() })?
@@ -298,7 +298,7 @@ mod tests {
     }
 
     /// lavapipe 22 leaks a compiled shader per pipeline bind when a uniform steers control
-    /// flow (shaders/bindings.wgsl): no program binds a uniform buffer.
+    /// flow (shaders/modules/bindings.wgsl): no program binds a uniform buffer.
     #[test]
     fn no_program_binds_a_uniform_buffer() {
         for p in [Program::Render, Program::Path, Program::Wavefront, Program::Trace, Program::View] {
@@ -382,7 +382,7 @@ mod tests {
                     up,
                     max_depth,
                     background,
-                    pad0,
+                    _pad,
                     ambient,
                     num_lights,
                     tile_origin,
@@ -397,13 +397,13 @@ mod tests {
                     seed
                 ]
             ),
-            layout!("Sphere", GpuSphere, [center, radius, object, prim, material]),
-            layout!("Cylinder", GpuCylinder, [pa, radius, pb, caps, object, prim, material]),
+            layout!("Sphere", GpuSphere, [center, radius, object, prim, material, _pad]),
+            layout!("Cylinder", GpuCylinder, [pa, radius, pb, caps, object, prim, material, _pad]),
             layout!("Plane", GpuPlane, [point, object, normal, material]),
             layout!("Triangle", GpuTriangle, [va, object, vb, prim, vc, material]),
-            layout!("Node", GpuNode, [lo_a, link_a, hi_a, link_b, lo_b, hi_b]),
-            layout!("LeafTriangle", GpuLeafTriangle, [va, index, vb, material, vc]),
-            layout!("Material", GpuMaterial, [color, kind, radiance, ior, roughness, flags]),
+            layout!("Node", GpuNode, [lo_a, link_a, hi_a, link_b, lo_b, _pad_a, hi_b, _pad_b]),
+            layout!("LeafTriangle", GpuLeafTriangle, [va, index, vb, material, vc, _pad]),
+            layout!("Material", GpuMaterial, [color, kind, radiance, ior, roughness, flags, _pad]),
             layout!("Light", GpuLight, [vector, kind, intensity, flags]),
             layout!("Emitter", GpuEmitter, [prim, kind, cdf, pdf]),
             layout!("QueryRay", GpuQueryRay, [origin, tmin, dir, tmax]),
@@ -432,13 +432,50 @@ mod tests {
             let (wgsl_size, members) =
                 found.unwrap_or_else(|| panic!("struct {name} not found in the composed shaders"));
             assert_eq!(wgsl_size as usize, size, "size of {name}");
-            for (field, offset) in fields {
-                let m = members
-                    .iter()
-                    .find(|m| m.name.as_deref() == Some(field))
-                    .unwrap_or_else(|| panic!("{name}.{field} missing in WGSL"));
-                assert_eq!(m.offset as usize, offset, "offset of {name}.{field}");
+            // Padding is `_pad` in Rust (unused) and `pad` in WGSL.
+            let wgsl_name = |f: &str| f.trim_start_matches('_').to_string();
+            // Every member on each side is in the list, so none is checked only through the size.
+            let listed: Vec<String> = fields.iter().map(|(f, _)| wgsl_name(f)).collect();
+            let in_wgsl: Vec<String> = members.iter().map(|m| m.name.clone().unwrap_or_default()).collect();
+            assert_eq!(in_wgsl, listed, "the members of WGSL {name}, in order");
+            let rust_name = rust_struct_of(name);
+            let in_rust: Vec<String> = rust_fields(rust_name).iter().map(|f| wgsl_name(f)).collect();
+            assert_eq!(in_rust, listed, "the fields of {rust_name}, in order");
+            for ((field, offset), m) in fields.iter().zip(&members) {
+                assert_eq!(m.offset as usize, *offset, "offset of {name}.{field}");
             }
         }
+    }
+
+    /// The Rust struct whose layout WGSL struct `name` shares.
+    fn rust_struct_of(name: &str) -> &'static str {
+        match name {
+            "Frame" => "GpuFrame",
+            "Sphere" => "GpuSphere",
+            "Cylinder" => "GpuCylinder",
+            "Plane" => "GpuPlane",
+            "Triangle" => "GpuTriangle",
+            "Node" => "GpuNode",
+            "LeafTriangle" => "GpuLeafTriangle",
+            "Material" => "GpuMaterial",
+            "Light" => "GpuLight",
+            "Emitter" => "GpuEmitter",
+            "QueryRay" => "GpuQueryRay",
+            "QueryHit" => "GpuQueryHit",
+            _ => panic!("no Rust twin named for WGSL struct {name}"),
+        }
+    }
+
+    /// The field names of `pub struct NAME` as written in the source of the buffer layouts,
+    /// so that a field added to the Rust struct and not to the test's list is caught.
+    fn rust_fields(name: &str) -> Vec<String> {
+        let sources = [include_str!("../../gpu_types.rs"), include_str!("../../accel/gpu_bvh.rs")];
+        let start = format!("pub struct {name} {{");
+        let text = sources.iter().find_map(|s| s.split_once(&start).map(|(_, rest)| rest));
+        let text = text.unwrap_or_else(|| panic!("pub struct {name} not found"));
+        let body = &text[..text.find("\n}").expect("the struct's closing brace")];
+        body.lines()
+            .filter_map(|l| l.trim().strip_prefix("pub ")?.split_once(':').map(|(f, _)| f.trim().to_string()))
+            .collect()
     }
 }

@@ -1,5 +1,5 @@
 // Buffer layouts shared by every stage: the twins of the #[repr(C)] structs in
-// src/gpu_types.rs and src/accel/bvh.rs (a test checks sizes and offsets through naga).
+// src/gpu_types.rs and src/accel/gpu_bvh.rs (a test checks sizes and offsets through naga).
 #define_import_path strahl::types
 
 struct Frame {
@@ -12,7 +12,7 @@ struct Frame {
     up: vec3<f32>,
     max_depth: u32,
     background: vec3<f32>,
-    pad0: u32,
+    pad: u32,
     ambient: vec3<f32>,
     num_lights: u32,
     tile_origin: vec2<u32>,
@@ -95,8 +95,7 @@ struct Material {
     ior: f32,
     roughness: f32,
     flags: u32,
-    pad_a: u32,
-    pad_b: u32,
+    pad: vec2<u32>,
 }
 
 struct Light {

@@ -1,4 +1,4 @@
-// One vertex of a path-traced sample: twin of render::path (PathState, path_start,
+// One vertex of a path-traced sample: twin of src/render/path.rs (PathState, path_start,
 // shade_vertex). Both GPU path tracers run it: the megakernel (path.wgsl) traces the vertex's
 // shadow ray at once, the wavefront one (wavefront.wgsl) queues it for a kernel of its own.
 //

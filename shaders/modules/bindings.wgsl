@@ -1,4 +1,5 @@
 // The scene's storage buffers (group 0), uploaded once per scene, and the per-dispatch frame.
+// No CPU twin: the host binds them in src/backend/gpu/mod.rs (SceneBuffers).
 // A binding is declared only in variants whose defs use it; empty arrays are bound to a
 // one-element dummy buffer.
 //
