@@ -9,7 +9,7 @@
 use crate::accel::Bvh;
 use crate::accel::gpu_bvh::{GpuBvh, GpuLeafTriangle, GpuNode};
 use crate::primitives::{Primitives, Tagged};
-use crate::scene::{Light, Scene};
+use crate::scene::{Light, MaterialKind, Scene};
 use bytemuck::{Pod, Zeroable};
 
 #[repr(C)]
@@ -72,6 +72,19 @@ pub struct GpuMaterial {
     /// [`MATERIAL_TWO_SIDED`].
     pub flags: u32,
     pub _pad: [u32; 2],
+}
+
+impl GpuMaterial {
+    /// What the material is. A kind the shaders do not know shades as diffuse there (their
+    /// default branch), so it does here too; the scene loader writes only known kinds.
+    pub fn kind(&self) -> MaterialKind {
+        match self.kind {
+            k if k == MaterialKind::Mirror as u32 => MaterialKind::Mirror,
+            k if k == MaterialKind::Dielectric as u32 => MaterialKind::Dielectric,
+            k if k == MaterialKind::Emissive as u32 => MaterialKind::Emissive,
+            _ => MaterialKind::Diffuse,
+        }
+    }
 }
 
 /// Material flag: an emissive surface emits from both faces.
@@ -325,4 +338,17 @@ pub struct GpuQueryHit {
     pub prim_ref: u32,
     /// [`QUERY_FOUND`] | [`QUERY_ENTER`] | part << 8.
     pub flags: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_material_reads_back_the_kind_it_was_written_with() {
+        for k in MaterialKind::ALL {
+            assert_eq!(GpuMaterial { kind: k as u32, ..Default::default() }.kind(), k);
+        }
+        assert_eq!(GpuMaterial { kind: 99, ..Default::default() }.kind(), MaterialKind::Diffuse);
+    }
 }

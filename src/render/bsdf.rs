@@ -30,7 +30,7 @@ pub struct BsdfSample {
 /// Whether the material scatters only into isolated directions (no next-event estimation).
 #[inline]
 pub fn is_specular(m: &GpuMaterial) -> bool {
-    m.kind == MaterialKind::Dielectric as u32 || (m.kind == MaterialKind::Mirror as u32 && m.roughness < MIN_ROUGHNESS)
+    m.kind() == MaterialKind::Dielectric || (m.kind() == MaterialKind::Mirror && m.roughness < MIN_ROUGHNESS)
 }
 
 /// An orthonormal basis (t, b) around unit `n`, branchless (Duff et al., "Building an
@@ -114,7 +114,7 @@ pub fn eval(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>) -> (V3<f32>,
         return (V3::zero(), 0.0);
     }
     let color = V3::from_array(m.color);
-    if m.kind == MaterialKind::Mirror as u32 {
+    if m.kind() == MaterialKind::Mirror {
         let alpha = m.roughness;
         let cos_o = wo.dot(ns);
         let h = (wo + wi).normalize();
@@ -140,7 +140,7 @@ pub fn eval(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>) -> (V3<f32>,
 /// fell below the surface).
 pub fn sample(m: &GpuMaterial, wo: V3<f32>, ns: V3<f32>, front: bool, u: [f32; 3]) -> Option<BsdfSample> {
     let color = V3::from_array(m.color);
-    if m.kind == MaterialKind::Dielectric as u32 {
+    if m.kind() == MaterialKind::Dielectric {
         let cos_i = wo.dot(ns);
         let eta = if front { m.ior } else { 1.0 / m.ior };
         let f = fresnel_dielectric(cos_i, eta);
@@ -151,7 +151,7 @@ pub fn sample(m: &GpuMaterial, wo: V3<f32>, ns: V3<f32>, front: bool, u: [f32; 3
         let dir = refract(-wo, ns, cos_i, 1.0 / eta);
         return Some(BsdfSample { dir, weight: color / (eta * eta), pdf: 0.0, specular: true });
     }
-    if m.kind == MaterialKind::Mirror as u32 {
+    if m.kind() == MaterialKind::Mirror {
         let cos_o = wo.dot(ns);
         if m.roughness < MIN_ROUGHNESS {
             let dir = reflect(-wo, ns);

@@ -113,7 +113,7 @@ pub fn shade_vertex(
     let m = &g.materials[hit.tag.material as usize];
     let front = ray.dir.dot(hit.normal) < 0.0;
     let ns = if front { hit.normal } else { -hit.normal };
-    if m.kind == MaterialKind::Emissive as u32 {
+    if m.kind() == MaterialKind::Emissive {
         let cos_l = emitted_cos(m.flags, -ray.dir.dot(hit.normal));
         if cos_l > 0.0 {
             let sampled = matches!(hit.prim.kind(), PrimKind::Triangle | PrimKind::Sphere);

@@ -68,9 +68,9 @@ fn shadow_transmittance(inp: &ShadeInputs, from: &Ray<f32>, t: f32, n: V3<f32>, 
         };
         let m = &inp.gpu.materials[hit.tag.material as usize];
         // Emissive surfaces are lights (their stand-ins sit inside them): they cast no shadow.
-        if m.kind == MaterialKind::Dielectric as u32 {
+        if m.kind() == MaterialKind::Dielectric {
             tr = tr.mul_elem(V3::from_array(m.color));
-        } else if m.kind != MaterialKind::Emissive as u32 {
+        } else if m.kind() != MaterialKind::Emissive {
             return V3::zero();
         }
         // Continue from the far side of the surface just crossed.
@@ -131,11 +131,11 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
         let front = ray.dir.dot(hit.normal) < 0.0;
         let ns = if front { hit.normal } else { -hit.normal };
         let albedo = V3::from_array(m.color);
-        match m.kind {
-            k if k == MaterialKind::Emissive as u32 => {
+        match m.kind() {
+            MaterialKind::Emissive => {
                 color += weight.mul_elem(V3::from_array(m.radiance));
             }
-            k if k == MaterialKind::Mirror as u32 => {
+            MaterialKind::Mirror => {
                 if depth < max_depth && sp < WHITTED_STACK {
                     let r = reflect(ray.dir, ns);
                     stack[sp] = Pending {
@@ -146,7 +146,7 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
                     sp += 1;
                 }
             }
-            k if k == MaterialKind::Dielectric as u32 => {
+            MaterialKind::Dielectric => {
                 if depth < max_depth {
                     let cos_i = -ray.dir.dot(ns);
                     let eta = if front { m.ior } else { 1.0 / m.ior };
@@ -171,7 +171,7 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
                     }
                 }
             }
-            _ => {
+            MaterialKind::Diffuse => {
                 color += weight.mul_elem(direct_light(inp, &ray, hit.t, ns, albedo));
             }
         }
