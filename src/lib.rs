@@ -3,6 +3,8 @@
 //!
 //! Data flows one way: scene file → [`scene::Scene`] → [`primitives::Primitives`] →
 //! [`accel::Bvh`] → a backend ([`cpu`] or `gpu`) → [`image::Image`] → output or metrics.
+//!
+//! Cargo feature `viewer` (default): the interactive window (`viewer`, on eframe).
 
 // `!(x >= 0.0)` is used on purpose throughout: unlike `x < 0.0` it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -24,4 +26,5 @@ pub mod render;
 pub mod rng;
 pub mod scene;
 pub mod stiff;
+#[cfg(feature = "viewer")]
 pub mod viewer;

@@ -5,6 +5,7 @@ mod converge;
 mod render;
 mod stiff;
 mod trace;
+#[cfg(feature = "viewer")]
 mod view;
 
 use clap::{CommandFactory, Parser, Subcommand, ValueEnum};
@@ -32,7 +33,11 @@ pub enum Command {
     /// Run the numerical-stability suite: robust against textbook formulations, CPU and GPU.
     Stiff(stiff::StiffArgs),
     /// Open an interactive window that renders a scene progressively on the GPU.
+    #[cfg(feature = "viewer")]
     View(view::ViewArgs),
+    /// Open an interactive window (not in this build: it was built without the `viewer` feature).
+    #[cfg(not(feature = "viewer"))]
+    View(NoViewer),
     /// Measure error against run time of progressive path tracing: CSV, plot and table.
     Converge(converge::ConvergeArgs),
 }
@@ -46,13 +51,28 @@ pub enum BackendChoice {
     Cpu,
 }
 
+/// `strahl view`'s arguments in a build without the viewer: whatever they are, the command
+/// says how to get the viewer.
+#[cfg(not(feature = "viewer"))]
+#[derive(clap::Args, Debug)]
+pub struct NoViewer {
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
+    args: Vec<String>,
+}
+
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Render(a) => render::run(a),
         Command::Trace(a) => trace::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Stiff(a) => stiff::run(a),
+        #[cfg(feature = "viewer")]
         Command::View(a) => view::run(a),
+        #[cfg(not(feature = "viewer"))]
+        Command::View(_) => Err(anyhow::anyhow!(
+            "this strahl was built without the viewer (cargo feature `viewer`); build it with the default \
+             features, `cargo build --release`, for `strahl view`"
+        )),
         Command::Converge(a) => converge::run(a),
     }
 }
@@ -80,6 +100,7 @@ pub fn image_file_name(s: &str) -> Result<PathBuf, String> {
 }
 
 /// A PNG file name (checked while parsing).
+#[cfg(feature = "viewer")]
 pub fn png_file_name(s: &str) -> Result<PathBuf, String> {
     file_name_with(s, &["png"], "the screenshot is saved as PNG; use a .png file name")
 }
