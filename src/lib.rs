@@ -3,6 +3,7 @@
 //!
 //! Data flows one way: scene file → [`scene::Scene`] → [`primitives::Primitives`] →
 //! [`accel::Bvh`] → a backend ([`cpu`] or `gpu`) → [`image::Image`] → output or metrics.
+//! [`parts`] assembles images rendered a region at a time.
 //!
 //! Cargo feature `viewer` (default): the interactive window (`viewer`, on eframe).
 
@@ -20,6 +21,7 @@ pub mod input;
 pub mod math;
 pub mod metrics;
 pub mod output;
+pub mod parts;
 pub mod primitives;
 pub mod query;
 pub mod render;
