@@ -331,10 +331,18 @@ fn without_a_vulkan_driver_the_cpu_is_measured() {
     let report = dir.path().join("report");
     let small = ["--width", "16", "--height", "12", "--max-spp", "4", "--reference-spp", "16"];
     let r = report.to_str().unwrap();
-    let out = strahl_env(&[&["converge", "assets/scenes/sphere.toml"][..], &small, &["-o", r]].concat(), &NO_DRIVER);
+    let both = [&["converge", "assets/scenes/sphere.toml", "--backend", "both"][..], &small, &["-o", r]].concat();
+    let out = strahl_env(&both, &NO_DRIVER);
     let err = stderr_of(&out);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("gpu backend unavailable") && err.contains("measuring the cpu only"), "{err}");
+    let csv = std::fs::read_to_string(report.join("convergence.csv")).unwrap();
+    assert!(csv.lines().skip(1).all(|l| l.starts_with("cpu,")) && csv.lines().count() == 4, "{csv}");
+    // By default (auto) the CPU is measured and renders the reference, each said in one line.
+    let out = strahl_env(&[&["converge", "assets/scenes/sphere.toml"][..], &small, &["-o", r]].concat(), &NO_DRIVER);
+    let err = stderr_of(&out);
+    assert!(out.status.success(), "{err}");
+    assert_eq!(err.matches("backend: cpu (no Vulkan adapter found)").count(), 2, "{err}");
     let csv = std::fs::read_to_string(report.join("convergence.csv")).unwrap();
     assert!(csv.lines().skip(1).all(|l| l.starts_with("cpu,")) && csv.lines().count() == 4, "{csv}");
 

@@ -2,14 +2,18 @@
 
 mod bench;
 mod converge;
+mod merge;
+mod progress;
 mod render;
 mod stiff;
 mod trace;
 #[cfg(feature = "viewer")]
 mod view;
 
-use clap::{CommandFactory, Parser, Subcommand, ValueEnum};
+use clap::{CommandFactory, Parser, Subcommand};
 use std::path::PathBuf;
+pub use strahl::backend::select::Choice as BackendChoice;
+use strahl::backend::select::{Selected, Workload};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -24,8 +28,10 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
-    /// Render a scene file to a PNG or EXR image.
+    /// Render a scene file (or a region of it) to a PNG or EXR image.
     Render(render::RenderArgs),
+    /// Assemble EXR parts rendered with --region or --tile into one image.
+    Merge(merge::MergeArgs),
     /// Answer ray queries from a CSV file: nearest or every intersection per ray.
     Trace(trace::TraceArgs),
     /// Measure shader compile and frame times: specialised against all-features shaders.
@@ -42,15 +48,6 @@ pub enum Command {
     Converge(converge::ConvergeArgs),
 }
 
-/// Where the work runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum BackendChoice {
-    /// WGSL compute shaders through wgpu (Vulkan).
-    Gpu,
-    /// The CPU reference (f32 mirror of the GPU, rayon over all cores).
-    Cpu,
-}
-
 /// `strahl view`'s arguments in a build without the viewer: whatever they are, the command
 /// says how to get the viewer.
 #[cfg(not(feature = "viewer"))]
@@ -63,6 +60,7 @@ pub struct NoViewer {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Render(a) => render::run(a),
+        Command::Merge(a) => merge::run(a),
         Command::Trace(a) => trace::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Stiff(a) => stiff::run(a),
@@ -118,16 +116,35 @@ fn file_name_with(s: &str, extensions: &[&str], hint: &str) -> Result<PathBuf, S
     }
 }
 
-/// A progress bar on stderr for `len` steps (hidden when stderr is not a terminal).
-pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new(len);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
-    bar.set_message(what.to_string());
-    bar
+/// The backend `--backend` asks for or, without the flag, `STRAHL_BACKEND` (else auto), and
+/// whether it came from the environment. A bad `STRAHL_BACKEND` is a usage error.
+pub fn backend_choice(flag: Option<BackendChoice>) -> anyhow::Result<(BackendChoice, bool)> {
+    if let Some(c) = flag {
+        return Ok((c, false));
+    }
+    match BackendChoice::from_env().map_err(usage_error)? {
+        Some(c) => Ok((c, true)),
+        None => Ok((BackendChoice::Auto, false)),
+    }
+}
+
+/// Opens the backend for `workload` that `--backend` (`flag`) or `STRAHL_BACKEND` asks for and
+/// says on stderr, in one line, which one `auto` took and why (or that the environment forced
+/// one).
+pub fn open_backend(flag: Option<BackendChoice>, workload: Workload) -> anyhow::Result<Selected> {
+    let (choice, from_env) = backend_choice(flag)?;
+    let selection = strahl::backend::select::select(choice, workload)?;
+    match (&selection.note, from_env) {
+        (Some(note), _) => eprintln!("{note}"),
+        (None, true) => eprintln!(
+            "backend: {} ({}={})",
+            if matches!(selection.selected, Selected::Cpu) { "cpu" } else { "gpu" },
+            strahl::backend::select::ENV,
+            std::env::var(strahl::backend::select::ENV).unwrap_or_default().trim()
+        ),
+        (None, false) => {}
+    }
+    Ok(selection.selected)
 }
 
 /// The one-line summary of a prepared scene, on stderr.
