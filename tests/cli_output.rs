@@ -281,9 +281,10 @@ fn bad_arguments_exit_with_status_2() {
         vec!["trace", s, "--rays", rays.to_str().unwrap(), "--backend", "gpu", "--precision", "f64"],
         vec!["stiff", "--scale", "0"],
         vec!["converge", s, "--reference", "ref.png", "-o", dir.path().to_str().unwrap()],
-        vec!["view", s, "--scale", "2"],
-        vec!["view", s, "--screenshot", "shot.jpg"],
     ];
+    // Without the viewer every `view` is refused before its arguments are read (below).
+    let views: Vec<Vec<&str>> = vec![vec!["view", s, "--scale", "2"], vec!["view", s, "--screenshot", "shot.jpg"]];
+    let cases = if cfg!(feature = "viewer") { [cases, views].concat() } else { cases };
     for args in cases {
         let out = strahl(&args);
         let err = stderr_of(&out);
@@ -291,6 +292,18 @@ fn bad_arguments_exit_with_status_2() {
         assert!(err.starts_with("error:") && !err.contains("panicked"), "{args:?}: {err}");
     }
     assert!(!x.exists());
+}
+
+/// A build without the `viewer` feature has `strahl view`, which says how to get the viewer
+/// and fails (status 1) whatever its arguments, opening nothing.
+#[cfg(not(feature = "viewer"))]
+#[test]
+fn view_in_a_build_without_the_viewer_says_how_to_get_it() {
+    let s = scene("sphere.toml");
+    for args in [vec!["view", s.to_str().unwrap()], vec!["view", s.to_str().unwrap(), "--scale", "2"]] {
+        let err = fails(&strahl(&args), 1);
+        assert!(err.contains("without the viewer") && err.contains("cargo build --release"), "{args:?}: {err}");
+    }
 }
 
 /// A BOM-prefixed rays CSV (as spreadsheets write) reads as without one.
