@@ -9,7 +9,7 @@ use std::sync::Arc;
 use strahl::backend::cpu;
 use strahl::backend::gpu::{GpuContext, SceneBuffers, render::Progressive};
 use strahl::gpu_types::GpuFrame;
-use strahl::image::Image;
+use strahl::image::{Image, Region};
 use strahl::render::Prepared;
 use strahl::scene::{RenderMode, Scene, file::parse};
 
@@ -356,4 +356,52 @@ fn direct_light_from_point_and_directional_lights_equals_whitted() {
     let rms = rms_codes(&path_img, &whitted);
     eprintln!("plane.toml, direct light, 64 spp: path and Whitted differ by {rms:.2} codes rms");
     assert!(rms < 1.0, "path and Whitted differ by {rms:.2} codes rms");
+}
+
+/// The wavefront path tracer computes what the megakernel computes, the same sums in the same
+/// order: the same image, bit for bit, progressive and one-shot (several sample passes, paths
+/// of every length up to max_depth).
+#[test]
+fn wavefront_and_megakernel_render_the_same_image() {
+    use strahl::backend::gpu::{PathKernels, render::render_tiles, wavefront::Wavefront};
+    let Some(ctx) = gpu() else { return };
+    let ctx = Arc::new(ctx);
+    let prep = Prepared::new(scene(MIXED));
+    let frame = GpuFrame { spp: 5, ..prep.frame(40, 30) };
+    let same = |what: &str, a: &Image, b: &Image| {
+        assert_eq!(a.non_finite_count(), 0, "{what}");
+        let differing = a.pixels.iter().zip(&b.pixels).filter(|(x, y)| x != y).count();
+        assert_eq!(differing, 0, "{what}: {differing} of {} pixels differ", a.pixels.len());
+    };
+    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+    let mut wf = Progressive::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Wavefront).unwrap();
+    assert_eq!(wf.kernels(), PathKernels::Wavefront);
+    wf.add_samples(2).unwrap();
+    wf.add_samples(3).unwrap();
+    let mut mega = Progressive::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Megakernel).unwrap();
+    mega.add_samples(5).unwrap();
+    same("progressive", &wf.image().unwrap(), &mega.image().unwrap());
+    let (one_shot, _) =
+        Wavefront::new(&ctx, buffers.clone(), buffers.key, frame).unwrap().render(&ctx, &|_, _| {}).unwrap();
+    let whole = Region::whole(frame.width, frame.height);
+    let (reference, _) =
+        render_tiles(&ctx, &buffers, &frame, RenderMode::Path, buffers.key, whole, &|_, _| {}).unwrap();
+    same("one-shot", &one_shot, &reference);
+    // A part of a split render: the region's pixels of the whole render, from both tracers.
+    let region = Region { x0: 7, y0: 3, x1: 33, y1: 29 };
+    let crop = Image {
+        width: region.width(),
+        height: region.height(),
+        pixels: (region.y0..region.y1)
+            .flat_map(|y| (region.x0..region.x1).map(move |x| (x, y)))
+            .map(|(x, y)| reference.pixels[(y * frame.width + x) as usize])
+            .collect(),
+    };
+    let (part, _) = Wavefront::for_region(&ctx, buffers.clone(), buffers.key, frame, region)
+        .unwrap()
+        .render(&ctx, &|_, _| {})
+        .unwrap();
+    same("wavefront region", &part, &crop);
+    let (part, _) = render_tiles(&ctx, &buffers, &frame, RenderMode::Path, buffers.key, region, &|_, _| {}).unwrap();
+    same("megakernel region", &part, &crop);
 }
