@@ -96,9 +96,11 @@ fn a_full_disk_keeps_the_previous_output() {
     let out = strahl(&[&small[..], &[exr.to_str().unwrap(), sphere.to_str().unwrap()]].concat());
     assert!(out.status.success(), "{}", stderr_of(&out));
     let before = std::fs::read(&exr).unwrap();
-    // 128 × 128 linear RGB floats: 196 KiB, more than the disk holds.
-    let big = ["render", "--backend", "cpu", "--width", "128", "--height", "128", "-o"];
-    let out = strahl(&[&big[..], &[exr.to_str().unwrap(), sphere.to_str().unwrap()]].concat());
+    // 256 × 256 linear RGB floats of path-traced noise (EXR files are compressed losslessly,
+    // and noise does not compress): about 190 KiB, more than the disk holds.
+    let big = ["render", "--backend", "cpu", "--mode", "path", "--spp", "1", "--width", "256", "--height", "256", "-o"];
+    let seed = scene("seed.toml");
+    let out = strahl(&[&big[..], &[exr.to_str().unwrap(), seed.to_str().unwrap()]].concat());
     let err = fails(&out, 1);
     assert!(err.contains("cannot write") && err.contains("out.exr"), "{err}");
     assert_eq!(err.matches("No space left on device").count(), 1, "{err}");
