@@ -71,18 +71,20 @@ pub enum Backend {
 }
 
 /// The faster backend for `w` where the only Vulkan device is a software one. Measured with
-/// `strahl render` and `strahl trace` (whole runs, shader cache warm) on a 2-vCPU Debian 12 VM,
-/// lavapipe of Mesa 25.0.7 against the CPU backend on the same two cores, the seed scene at
-/// 640 × 480 (README, "Choosing the backend"):
-/// - Whitted, 1 spp: cpu 0.26–0.31 s, lavapipe 0.24–0.28 s plus 0.12–0.17 s of pipeline
-///   creation (and 3–6 s of compiling at the first dispatch with a cold shader cache). Mesa
-///   22.3: lavapipe 1.6 s.
-/// - Path, 16 spp: cpu 3.5–5.4 s, lavapipe 3.9–4.3 s (0.9–1.4 against 1.1–1.25 M samples/s).
-/// - Trace, 200,000 rays over the seed scene: nearest hit cpu 0.35 s, lavapipe 0.60 s; every
-///   hit cpu 0.70 s, lavapipe 1.42 s.
+/// whole runs of `strahl render` and `strahl trace` (shader cache warm) on a 2-vCPU Debian 12
+/// VM, lavapipe against the CPU backend on the same two cores, the seed scene at 640 × 480
+/// (README, "Choosing the backend", with `strahl bench`'s per-frame figures beside them):
+/// - Whitted, 1 spp: cpu 1.6–1.7 s; lavapipe (Mesa 25.0.7) 2.3–3.1 s, of which opening the
+///   device and creating the pipeline 0.6–0.8 s (and 3–6 s more of compiling at the first
+///   dispatch with a cold shader cache); Mesa 22.3.6 6.7 s.
+/// - Path, 16 spp: cpu 15.4–16.8 s; lavapipe (Mesa 25) 16.7–17.9 s; Mesa 22.3 62.8 s.
+/// - Trace, 200,000 rays over the seed scene: nearest hit cpu 1.3–1.9 s, lavapipe 1.4–2.8 s;
+///   every hit cpu 2.0–2.3 s, lavapipe 1.8–4.5 s.
 ///
-/// The CPU backend is as fast or faster everywhere and compiles nothing, so it is chosen for
-/// all three. Revise a row when the shaders get faster.
+/// (The machine was shared while measuring: times are several times the unloaded ones, ratios
+/// within minutes compare.) The CPU backend is as fast (within the spread of the runs) or
+/// faster in every row and compiles
+/// nothing, so it is chosen for all three. Revise a row when the shaders get faster.
 pub fn on_software_device(w: Workload) -> Backend {
     match w {
         Workload::Whitted => Backend::Cpu,
