@@ -76,7 +76,6 @@ pub fn render_region(
     progress: &dyn Fn(u64, u64),
 ) -> Result<(Image, RenderStats), GpuError> {
     assert!(scene.runs_with(key), "variant {} cannot render a scene needing {}", key.label(), scene.key.label());
-    assert!(region.fits(frame.width, frame.height), "region {region} of a {}x{} image", frame.width, frame.height);
     if mode == RenderMode::Path && ctx.path_kernels()? == PathKernels::Wavefront {
         let wf = Wavefront::for_region(ctx, scene.clone(), key, *frame, region)?;
         return wf.render(ctx, progress);
