@@ -3,6 +3,9 @@
 //!
 //! Data flows one way: scene file → [`scene::Scene`] → [`primitives::Primitives`] →
 //! [`accel::Bvh`] → a backend ([`cpu`] or `gpu`) → [`image::Image`] → output or metrics.
+//! [`parts`] assembles images rendered a region at a time.
+//!
+//! Cargo feature `viewer` (default): the interactive window (`viewer`, on eframe).
 
 // `!(x >= 0.0)` is used on purpose throughout: unlike `x < 0.0` it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -18,10 +21,12 @@ pub mod input;
 pub mod math;
 pub mod metrics;
 pub mod output;
+pub mod parts;
 pub mod primitives;
 pub mod query;
 pub mod render;
 pub mod rng;
 pub mod scene;
 pub mod stiff;
+#[cfg(feature = "viewer")]
 pub mod viewer;

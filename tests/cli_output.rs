@@ -96,9 +96,11 @@ fn a_full_disk_keeps_the_previous_output() {
     let out = strahl(&[&small[..], &[exr.to_str().unwrap(), sphere.to_str().unwrap()]].concat());
     assert!(out.status.success(), "{}", stderr_of(&out));
     let before = std::fs::read(&exr).unwrap();
-    // 128 × 128 linear RGB floats: 196 KiB, more than the disk holds.
-    let big = ["render", "--backend", "cpu", "--width", "128", "--height", "128", "-o"];
-    let out = strahl(&[&big[..], &[exr.to_str().unwrap(), sphere.to_str().unwrap()]].concat());
+    // 256 × 256 linear RGB floats of path-traced noise (EXR files are compressed losslessly,
+    // and noise does not compress): about 190 KiB, more than the disk holds.
+    let big = ["render", "--backend", "cpu", "--mode", "path", "--spp", "1", "--width", "256", "--height", "256", "-o"];
+    let seed = scene("seed.toml");
+    let out = strahl(&[&big[..], &[exr.to_str().unwrap(), seed.to_str().unwrap()]].concat());
     let err = fails(&out, 1);
     assert!(err.contains("cannot write") && err.contains("out.exr"), "{err}");
     assert_eq!(err.matches("No space left on device").count(), 1, "{err}");
@@ -281,9 +283,10 @@ fn bad_arguments_exit_with_status_2() {
         vec!["trace", s, "--rays", rays.to_str().unwrap(), "--backend", "gpu", "--precision", "f64"],
         vec!["stiff", "--scale", "0"],
         vec!["converge", s, "--reference", "ref.png", "-o", dir.path().to_str().unwrap()],
-        vec!["view", s, "--scale", "2"],
-        vec!["view", s, "--screenshot", "shot.jpg"],
     ];
+    // Without the viewer every `view` is refused before its arguments are read (below).
+    let views: Vec<Vec<&str>> = vec![vec!["view", s, "--scale", "2"], vec!["view", s, "--screenshot", "shot.jpg"]];
+    let cases = if cfg!(feature = "viewer") { [cases, views].concat() } else { cases };
     for args in cases {
         let out = strahl(&args);
         let err = stderr_of(&out);
@@ -291,6 +294,18 @@ fn bad_arguments_exit_with_status_2() {
         assert!(err.starts_with("error:") && !err.contains("panicked"), "{args:?}: {err}");
     }
     assert!(!x.exists());
+}
+
+/// A build without the `viewer` feature has `strahl view`, which says how to get the viewer
+/// and fails (status 1) whatever its arguments, opening nothing.
+#[cfg(not(feature = "viewer"))]
+#[test]
+fn view_in_a_build_without_the_viewer_says_how_to_get_it() {
+    let s = scene("sphere.toml");
+    for args in [vec!["view", s.to_str().unwrap()], vec!["view", s.to_str().unwrap(), "--scale", "2"]] {
+        let err = fails(&strahl(&args), 1);
+        assert!(err.contains("without the viewer") && err.contains("cargo build --release"), "{args:?}: {err}");
+    }
 }
 
 /// A BOM-prefixed rays CSV (as spreadsheets write) reads as without one.
@@ -331,10 +346,18 @@ fn without_a_vulkan_driver_the_cpu_is_measured() {
     let report = dir.path().join("report");
     let small = ["--width", "16", "--height", "12", "--max-spp", "4", "--reference-spp", "16"];
     let r = report.to_str().unwrap();
-    let out = strahl_env(&[&["converge", "assets/scenes/sphere.toml"][..], &small, &["-o", r]].concat(), &NO_DRIVER);
+    let both = [&["converge", "assets/scenes/sphere.toml", "--backend", "both"][..], &small, &["-o", r]].concat();
+    let out = strahl_env(&both, &NO_DRIVER);
     let err = stderr_of(&out);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("gpu backend unavailable") && err.contains("measuring the cpu only"), "{err}");
+    let csv = std::fs::read_to_string(report.join("convergence.csv")).unwrap();
+    assert!(csv.lines().skip(1).all(|l| l.starts_with("cpu,")) && csv.lines().count() == 4, "{csv}");
+    // By default (auto) the CPU is measured and renders the reference, each said in one line.
+    let out = strahl_env(&[&["converge", "assets/scenes/sphere.toml"][..], &small, &["-o", r]].concat(), &NO_DRIVER);
+    let err = stderr_of(&out);
+    assert!(out.status.success(), "{err}");
+    assert_eq!(err.matches("backend: cpu (no Vulkan adapter found)").count(), 2, "{err}");
     let csv = std::fs::read_to_string(report.join("convergence.csv")).unwrap();
     assert!(csv.lines().skip(1).all(|l| l.starts_with("cpu,")) && csv.lines().count() == 4, "{csv}");
 

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use strahl::backend::cpu;
 use strahl::backend::gpu::{GpuContext, SceneBuffers, render::PathAccumulator};
 use strahl::gpu_types::GpuFrame;
-use strahl::image::Image;
+use strahl::image::{Image, Region};
 use strahl::render::Prepared;
 use strahl::scene::{RenderMode, Scene, file::parse};
 
@@ -383,6 +383,25 @@ fn wavefront_and_megakernel_render_the_same_image() {
     same("progressive", &wf.image().unwrap(), &mega.image().unwrap());
     let (one_shot, _) =
         Wavefront::new(&ctx, buffers.clone(), buffers.key, frame).unwrap().render(&ctx, &|_, _| {}).unwrap();
-    let (reference, _) = render_tiles(&ctx, &buffers, &frame, RenderMode::Path, buffers.key, &|_, _| {}).unwrap();
+    let whole = Region::whole(frame.width, frame.height);
+    let (reference, _) =
+        render_tiles(&ctx, &buffers, &frame, RenderMode::Path, buffers.key, whole, &|_, _| {}).unwrap();
     same("one-shot", &one_shot, &reference);
+    // A part of a split render: the region's pixels of the whole render, from both tracers.
+    let region = Region { x0: 7, y0: 3, x1: 33, y1: 29 };
+    let crop = Image {
+        width: region.width(),
+        height: region.height(),
+        pixels: (region.y0..region.y1)
+            .flat_map(|y| (region.x0..region.x1).map(move |x| (x, y)))
+            .map(|(x, y)| reference.pixels[(y * frame.width + x) as usize])
+            .collect(),
+    };
+    let (part, _) = Wavefront::for_region(&ctx, buffers.clone(), buffers.key, frame, region)
+        .unwrap()
+        .render(&ctx, &|_, _| {})
+        .unwrap();
+    same("wavefront region", &part, &crop);
+    let (part, _) = render_tiles(&ctx, &buffers, &frame, RenderMode::Path, buffers.key, region, &|_, _| {}).unwrap();
+    same("megakernel region", &part, &crop);
 }

@@ -1,7 +1,7 @@
 //! The CPU backend: the f32 mirror of the GPU, run with rayon over image rows.
 
 use crate::gpu_types::GpuFrame;
-use crate::image::Image;
+use crate::image::{Image, Region};
 use crate::render::shade::ShadeInputs;
 use crate::render::{Prepared, path, shade};
 use crate::scene::RenderMode;
@@ -12,16 +12,35 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Renders the image described by `frame` (its `width`, `height`, `spp`, `sample_base`) in
 /// `mode`. `progress` is called with the number of rows finished so far, from worker threads.
 pub fn render(prep: &Prepared, frame: &GpuFrame, mode: RenderMode, progress: &(dyn Fn(u64) + Sync)) -> Image {
+    render_region(prep, frame, mode, Region::whole(frame.width, frame.height), progress)
+}
+
+/// Renders the pixels of `region` of the image described by `frame`, each exactly as a
+/// render of the whole image computes it (its rays and random numbers depend on the pixel's
+/// place in the whole image only). `progress` is called with the number of the region's rows
+/// finished so far, from worker threads.
+pub fn render_region(
+    prep: &Prepared,
+    frame: &GpuFrame,
+    mode: RenderMode,
+    region: Region,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Image {
+    assert!(region.fits(frame.width, frame.height), "region {region} of a {}x{} image", frame.width, frame.height);
     let inputs = ShadeInputs { prims: &prep.prims, bvh: &prep.bvh, gpu: &prep.gpu, frame };
     let shade_pixel = match mode {
         RenderMode::Whitted => shade::shade_pixel,
         RenderMode::Path => path::shade_pixel,
     };
-    let mut img = Image::new(frame.width, frame.height);
+    let mut img = Image::new(region.width(), region.height());
+    if img.pixels.is_empty() {
+        return img;
+    }
     let done = AtomicU64::new(0);
-    img.pixels.par_chunks_mut(frame.width as usize).enumerate().for_each(|(y, row)| {
-        for (x, px) in row.iter_mut().enumerate() {
-            *px = shade_pixel(&inputs, x as u32, y as u32);
+    img.pixels.par_chunks_mut(region.width() as usize).enumerate().for_each(|(dy, row)| {
+        let y = region.y0 + dy as u32;
+        for (dx, px) in row.iter_mut().enumerate() {
+            *px = shade_pixel(&inputs, region.x0 + dx as u32, y);
         }
         progress(done.fetch_add(1, Ordering::Relaxed) + 1);
     });

@@ -25,6 +25,7 @@ use strahl::backend::gpu::render::{PathAccumulator, render, render_tiles};
 use strahl::backend::gpu::wavefront::Wavefront;
 use strahl::backend::gpu::{FeatureKey, GpuContext, PathKernels, SceneBuffers};
 use strahl::gpu_types::GpuFrame;
+use strahl::image::Region;
 use strahl::render::Prepared;
 use strahl::scene::{RenderMode, Scene};
 
@@ -275,7 +276,8 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
         let mega =
             PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), prep.frame(8, 8), PathKernels::Megakernel);
         mega?.add_samples(1)?;
-        let (_, stats) = render_tiles(ctx, &buffers, &frame, RenderMode::Path, key, &|_, _| {})?;
+        let whole = Region::whole(frame.width, frame.height);
+        let (_, stats) = render_tiles(ctx, &buffers, &frame, RenderMode::Path, key, whole, &|_, _| {})?;
         let mut progressive =
             PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Megakernel)?;
         let wall = median_time(a.frames, || {
@@ -286,14 +288,14 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
         gpu.push(row("megakernel", stats.key.label(), wall, &stats.kernel_times));
         if ctx.has_wavefront() {
             let wf = Wavefront::new(ctx, buffers.clone(), key, frame)?;
-            let (_, times) = wf.render(ctx, &|_, _| {})?;
+            let (_, wf_stats) = wf.render(ctx, &|_, _| {})?;
             let mut progressive = PathAccumulator::with_kernels(ctx.clone(), buffers, frame, PathKernels::Wavefront)?;
             let wall = median_time(a.frames, || {
                 progressive.reset();
                 progressive.add_samples(a.spp)?;
                 Ok(())
             })?;
-            gpu.push(row("wavefront", wf.key().label(), wall, &times));
+            gpu.push(row("wavefront", wf.key().label(), wall, &wf_stats.kernel_times));
         }
     }
     let cpu = median_time(a.frames, || {

@@ -1,12 +1,14 @@
 //! `strahl converge`: error against wall time of progressive path tracing, per backend.
 
-use super::{BackendChoice, progress_bar};
+use super::BackendChoice;
+use super::progress::Progress;
 use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use strahl::backend::cpu;
-use strahl::backend::gpu::{self, GpuContext, SceneBuffers};
+use strahl::backend::gpu::{self, SceneBuffers};
+use strahl::backend::select::{self, Selected, Workload};
 use strahl::converge::{Progressive, Row, Schedule};
 use strahl::image::Image;
 use strahl::render::Prepared;
@@ -15,17 +17,21 @@ use strahl::scene::{RenderMode, Scene};
 /// Which backends to measure.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum ConvergeBackend {
+    /// The one `strahl render --mode path` would take (see `--backend auto` there).
+    Auto,
     Gpu,
     Cpu,
+    /// The GPU and the CPU, one after the other (the CPU alone, with a note, without a Vulkan
+    /// adapter).
     Both,
 }
 
-impl ConvergeBackend {
-    fn list(self) -> Vec<BackendChoice> {
-        match self {
-            Self::Gpu => vec![BackendChoice::Gpu],
-            Self::Cpu => vec![BackendChoice::Cpu],
-            Self::Both => vec![BackendChoice::Gpu, BackendChoice::Cpu],
+impl From<BackendChoice> for ConvergeBackend {
+    fn from(c: BackendChoice) -> Self {
+        match c {
+            BackendChoice::Auto => Self::Auto,
+            BackendChoice::Gpu => Self::Gpu,
+            BackendChoice::Cpu => Self::Cpu,
         }
     }
 }
@@ -34,9 +40,9 @@ impl ConvergeBackend {
 pub struct ConvergeArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
-    /// Which backends to measure.
-    #[arg(long, value_enum, default_value = "both")]
-    pub backend: ConvergeBackend,
+    /// Which backends to measure (default: STRAHL_BACKEND, else auto).
+    #[arg(long, value_enum)]
+    pub backend: Option<ConvergeBackend>,
     /// Reference image (linear EXR) at the render size; default: render one.
     #[arg(
         long,
@@ -48,9 +54,9 @@ pub struct ConvergeArgs {
     /// Samples per pixel of the rendered reference.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub reference_spp: u32,
-    /// Backend that renders the reference (default: gpu when it is measured, else cpu).
-    #[arg(long, value_enum)]
-    pub reference_backend: Option<BackendChoice>,
+    /// Backend that renders the reference (default: auto, the faster one for path tracing).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub reference_backend: BackendChoice,
     /// Most samples per pixel per backend: measured at 1, 2, 4, ... and this.
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub max_spp: u32,
@@ -106,23 +112,36 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
 
     // Every measured backend is opened (and the GPU's pipeline compiled) before anything is
     // rendered or written: without a GPU, `both` measures the CPU alone, `gpu` fails here.
+    let which = match a.backend {
+        Some(b) => b,
+        None => super::backend_choice(None)?.0.into(),
+    };
     let mut measured = Vec::new();
-    for backend in a.backend.list() {
-        match open_backend(&prep, backend, width, height, MEASURED_SEED) {
-            Ok(p) => measured.push(p),
-            Err(e) if a.backend == ConvergeBackend::Both && backend == BackendChoice::Gpu => {
-                eprintln!("gpu backend unavailable ({}); measuring the cpu only", strahl::errors::chain(&e));
+    let mut open = |selected: Selected| -> Result<()> {
+        measured.push(open_progressive(&prep, selected, width, height, MEASURED_SEED)?);
+        Ok(())
+    };
+    match which {
+        ConvergeBackend::Auto => open(super::open_backend(Some(BackendChoice::Auto), Workload::Path)?)?,
+        ConvergeBackend::Cpu => open(Selected::Cpu)?,
+        ConvergeBackend::Gpu => {
+            open(super::open_backend(Some(BackendChoice::Gpu), Workload::Path)?).context("opening the gpu backend")?
+        }
+        ConvergeBackend::Both => {
+            match select::select(BackendChoice::Gpu, Workload::Path)
+                .map_err(anyhow::Error::from)
+                .and_then(|s| open(s.selected))
+            {
+                Ok(()) => {}
+                Err(e) => eprintln!("gpu backend unavailable ({}); measuring the cpu only", strahl::errors::chain(&e)),
             }
-            Err(e) => return Err(e.context(format!("opening the {} backend", backend_id(backend)))),
+            open(Selected::Cpu)?;
         }
     }
-    let gpu_measured = measured.iter().any(|p| p.backend() == "gpu");
 
     let reference = match reference_input {
         Some(img) => img,
         None => {
-            let backend =
-                a.reference_backend.unwrap_or(if gpu_measured { BackendChoice::Gpu } else { BackendChoice::Cpu });
             if a.max_spp.saturating_mul(4) > a.reference_spp {
                 eprintln!(
                     "note: the reference ({} spp) is not much less noisy than the last measured image \
@@ -130,7 +149,7 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
                     a.reference_spp, a.max_spp
                 );
             }
-            render_reference(&prep, backend, width, height, a.reference_spp)?
+            render_reference(&prep, a.reference_backend, width, height, a.reference_spp)?
         }
     };
     let bad = reference.non_finite_count();
@@ -149,15 +168,18 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
     // The CSV is rewritten (atomically) after every row: an interrupted run keeps its rows.
     let csv = out.path(CSV_FILE);
     let mut rows = Vec::new();
-    for mut p in measured {
+    for p in measured {
         println!("{}:", p.label());
+        let pixels = width as u64 * height as u64;
+        let progress = Progress::new(pixels * a.max_spp as u64, p.backend());
+        let mut p = Tracked { inner: p, progress: &progress, pixels };
         let mut on_row = |r: &Row| {
             rows.push(r.clone());
             strahl::converge::write_csv(&rows, &csv)?;
-            print_row(r);
+            progress.suspend(|| print_row(r));
             Ok(())
         };
-        strahl::converge::measure(p.as_mut(), &reference, &schedule, &mut on_row)?;
+        strahl::converge::measure(&mut p, &reference, &schedule, &mut on_row)?;
     }
     let png = out.path(PLOT_FILE);
     strahl::converge::plot(&rows, &plot_title(&a.scene, width, height), &png)?;
@@ -228,21 +250,22 @@ fn load_reference(path: &Path, width: u32, height: u32) -> Result<Image> {
 const MEASURED_SEED: u32 = 0;
 const REFERENCE_SEED: u32 = 0x9e37_79b9;
 
-/// The progressive path tracer of `backend` for `prep` at width×height, with its pipeline
-/// compiled and warmed up (one discarded pass) so that timing starts with rendering only.
-fn open_backend(
+/// The progressive path tracer of the `selected` backend for `prep` at width×height, with its
+/// pipeline compiled and warmed up (one discarded pass) so that timing starts with rendering
+/// only.
+fn open_progressive(
     prep: &Arc<Prepared>,
-    backend: BackendChoice,
+    selected: Selected,
     width: u32,
     height: u32,
     seed: u32,
 ) -> Result<Box<dyn Progressive>> {
     let mut frame = prep.frame(width, height);
     frame.seed = seed;
-    Ok(match backend {
-        BackendChoice::Cpu => Box::new(cpu::PathAccumulator::new(prep.clone(), frame)),
-        BackendChoice::Gpu => {
-            let ctx = Arc::new(GpuContext::new()?);
+    Ok(match selected {
+        Selected::Cpu => Box::new(cpu::PathAccumulator::new(prep.clone(), frame)),
+        Selected::Gpu(ctx) => {
+            let ctx = Arc::new(*ctx);
             let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
             let mut p = gpu::render::PathAccumulator::new(ctx, buffers, frame)?;
             // lavapipe compiles the shader at its first dispatch.
@@ -253,24 +276,64 @@ fn open_backend(
     })
 }
 
-/// Renders `spp` samples per pixel on `backend`, in chunks under a progress bar.
-fn render_reference(prep: &Arc<Prepared>, backend: BackendChoice, width: u32, height: u32, spp: u32) -> Result<Image> {
-    let mut p = open_backend(prep, backend, width, height, REFERENCE_SEED)
-        .with_context(|| format!("opening the {} backend for the reference", backend_id(backend)))?;
-    println!("reference: rendering {spp} spp on the {} backend", backend_id(backend));
-    let bar = progress_bar(spp as u64, &format!("reference ({})", backend_id(backend)));
+/// Renders `spp` samples per pixel on the backend `choice` takes for path tracing, in chunks,
+/// with progress.
+fn render_reference(prep: &Arc<Prepared>, choice: BackendChoice, width: u32, height: u32, spp: u32) -> Result<Image> {
+    let selection = select::select(choice, Workload::Path).context("opening the backend for the reference")?;
+    if let Some(note) = &selection.note {
+        eprintln!("reference {note}");
+    }
+    let id = match selection.selected {
+        Selected::Cpu => "cpu",
+        Selected::Gpu(_) => "gpu",
+    };
+    let mut p = open_progressive(prep, selection.selected, width, height, REFERENCE_SEED)
+        .with_context(|| format!("opening the {id} backend for the reference"))?;
+    println!("reference: rendering {spp} spp on the {id} backend");
+    let pixels = width as u64 * height as u64;
+    let progress = Progress::new(pixels * spp as u64, "reference");
     while p.samples() < spp {
         p.add_samples(REFERENCE_CHUNK.min(spp - p.samples()))?;
-        bar.set_position(p.samples() as u64);
+        progress.set(p.samples() as u64 * pixels);
     }
-    bar.finish_and_clear();
+    progress.finish();
     p.image()
 }
 
-fn backend_id(b: BackendChoice) -> &'static str {
-    match b {
-        BackendChoice::Gpu => "gpu",
-        BackendChoice::Cpu => "cpu",
+/// A measured backend with progress: each call adds its samples in up to [`TRACKED_PIECES`]
+/// pieces (the same samples in the same order, so the same image) and reports after each.
+struct Tracked<'a> {
+    inner: Box<dyn Progressive>,
+    progress: &'a Progress,
+    pixels: u64,
+}
+
+/// Pieces per [`Progressive::add_samples`] call of a measured backend: enough for the progress
+/// to move during the long last steps of a doubling schedule; each piece costs one wait for
+/// the device, a small part of a piece's time.
+const TRACKED_PIECES: u32 = 8;
+
+impl Progressive for Tracked<'_> {
+    fn label(&self) -> String {
+        self.inner.label()
+    }
+    fn backend(&self) -> &'static str {
+        self.inner.backend()
+    }
+    fn add_samples(&mut self, n: u32) -> Result<()> {
+        let piece = n.div_ceil(TRACKED_PIECES).max(1);
+        let end = self.inner.samples() + n;
+        while self.inner.samples() < end {
+            self.inner.add_samples(piece.min(end - self.inner.samples()))?;
+            self.progress.set(self.inner.samples() as u64 * self.pixels);
+        }
+        Ok(())
+    }
+    fn samples(&self) -> u32 {
+        self.inner.samples()
+    }
+    fn image(&mut self) -> Result<Image> {
+        self.inner.image()
     }
 }
 

@@ -2,13 +2,18 @@
 
 mod bench;
 mod converge;
+mod merge;
+mod progress;
 mod render;
 mod stiff;
 mod trace;
+#[cfg(feature = "viewer")]
 mod view;
 
-use clap::{CommandFactory, Parser, Subcommand, ValueEnum};
+use clap::{CommandFactory, Parser, Subcommand};
 use std::path::PathBuf;
+pub use strahl::backend::select::Choice as BackendChoice;
+use strahl::backend::select::{Selected, Workload};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -23,8 +28,10 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
-    /// Render a scene file to a PNG or EXR image.
+    /// Render a scene file (or a region of it) to a PNG or EXR image.
     Render(render::RenderArgs),
+    /// Assemble EXR parts rendered with --region or --tile into one image.
+    Merge(merge::MergeArgs),
     /// Answer ray queries from a CSV file: nearest or every intersection per ray.
     Trace(trace::TraceArgs),
     /// Measure shader compile and frame times: specialised against all-features shaders.
@@ -32,27 +39,38 @@ pub enum Command {
     /// Run the numerical-stability suite: robust against textbook formulations, CPU and GPU.
     Stiff(stiff::StiffArgs),
     /// Open an interactive window that renders a scene progressively on the GPU.
+    #[cfg(feature = "viewer")]
     View(view::ViewArgs),
+    /// Open an interactive window (not in this build: it was built without the `viewer` feature).
+    #[cfg(not(feature = "viewer"))]
+    View(NoViewer),
     /// Measure error against run time of progressive path tracing: CSV, plot and table.
     Converge(converge::ConvergeArgs),
 }
 
-/// Where the work runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum BackendChoice {
-    /// WGSL compute shaders through wgpu (Vulkan).
-    Gpu,
-    /// The CPU reference (f32 mirror of the GPU, rayon over all cores).
-    Cpu,
+/// `strahl view`'s arguments in a build without the viewer: whatever they are, the command
+/// says how to get the viewer.
+#[cfg(not(feature = "viewer"))]
+#[derive(clap::Args, Debug)]
+pub struct NoViewer {
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
+    args: Vec<String>,
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Render(a) => render::run(a),
+        Command::Merge(a) => merge::run(a),
         Command::Trace(a) => trace::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Stiff(a) => stiff::run(a),
+        #[cfg(feature = "viewer")]
         Command::View(a) => view::run(a),
+        #[cfg(not(feature = "viewer"))]
+        Command::View(_) => Err(anyhow::anyhow!(
+            "this strahl was built without the viewer (cargo feature `viewer`); build it with the default \
+             features, `cargo build --release`, for `strahl view`"
+        )),
         Command::Converge(a) => converge::run(a),
     }
 }
@@ -80,6 +98,7 @@ pub fn image_file_name(s: &str) -> Result<PathBuf, String> {
 }
 
 /// A PNG file name (checked while parsing).
+#[cfg(feature = "viewer")]
 pub fn png_file_name(s: &str) -> Result<PathBuf, String> {
     file_name_with(s, &["png"], "the screenshot is saved as PNG; use a .png file name")
 }
@@ -97,16 +116,35 @@ fn file_name_with(s: &str, extensions: &[&str], hint: &str) -> Result<PathBuf, S
     }
 }
 
-/// A progress bar on stderr for `len` steps (hidden when stderr is not a terminal).
-pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new(len);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
-    bar.set_message(what.to_string());
-    bar
+/// The backend `--backend` asks for or, without the flag, `STRAHL_BACKEND` (else auto), and
+/// whether it came from the environment. A bad `STRAHL_BACKEND` is a usage error.
+pub fn backend_choice(flag: Option<BackendChoice>) -> anyhow::Result<(BackendChoice, bool)> {
+    if let Some(c) = flag {
+        return Ok((c, false));
+    }
+    match BackendChoice::from_env().map_err(usage_error)? {
+        Some(c) => Ok((c, true)),
+        None => Ok((BackendChoice::Auto, false)),
+    }
+}
+
+/// Opens the backend for `workload` that `--backend` (`flag`) or `STRAHL_BACKEND` asks for and
+/// says on stderr, in one line, which one `auto` took and why (or that the environment forced
+/// one).
+pub fn open_backend(flag: Option<BackendChoice>, workload: Workload) -> anyhow::Result<Selected> {
+    let (choice, from_env) = backend_choice(flag)?;
+    let selection = strahl::backend::select::select(choice, workload)?;
+    match (&selection.note, from_env) {
+        (Some(note), _) => eprintln!("{note}"),
+        (None, true) => eprintln!(
+            "backend: {} ({}={})",
+            if matches!(selection.selected, Selected::Cpu) { "cpu" } else { "gpu" },
+            strahl::backend::select::ENV,
+            std::env::var(strahl::backend::select::ENV).unwrap_or_default().trim()
+        ),
+        (None, false) => {}
+    }
+    Ok(selection.selected)
 }
 
 /// The one-line summary of a prepared scene, on stderr.

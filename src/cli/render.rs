@@ -1,11 +1,14 @@
 //! `strahl render`.
 
-use super::{BackendChoice, progress_bar};
+use super::BackendChoice;
+use super::progress::Progress;
 use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
 use std::time::Instant;
-use strahl::backend::gpu::{self, GpuContext, SceneBuffers};
+use strahl::backend::gpu::{self, SceneBuffers};
+use strahl::backend::select::{Selected, Workload};
+use strahl::image::{ExrPlacement, Region};
 use strahl::render::Prepared;
 use strahl::scene::{RenderMode, Scene};
 
@@ -16,9 +19,17 @@ pub struct RenderArgs {
     /// Output image: .png (8-bit sRGB) or .exr (linear float).
     #[arg(short, long, value_parser = super::image_file_name)]
     pub output: PathBuf,
-    /// Where to render (default: gpu, falling back to cpu when no Vulkan adapter exists).
+    /// Where to render (default: STRAHL_BACKEND, else auto: a hardware GPU, else the faster
+    /// of lavapipe and the cpu for the mode, the cpu without a Vulkan adapter).
     #[arg(long, value_enum)]
     pub backend: Option<BackendChoice>,
+    /// Render only this pixel rectangle: columns X0..X1, rows Y0..Y1 (the ends excluded). An
+    /// EXR output records where it lies (data window); `strahl merge` assembles such parts.
+    #[arg(long, value_name = "X0,Y0,X1,Y1", value_parser = parse_region, conflicts_with = "tile")]
+    pub region: Option<Region>,
+    /// Render only band K of N (0-based) of horizontal bands of equal height, as --region.
+    #[arg(long, value_name = "K/N", value_parser = parse_tile)]
+    pub tile: Option<(u32, u32)>,
     /// Image width (default: the scene's [image] width).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub width: Option<u32>,
@@ -57,6 +68,33 @@ impl From<ModeChoice> for RenderMode {
     }
 }
 
+/// `X0,Y0,X1,Y1` with X0 < X1 and Y0 < Y1 (whether it fits the image is checked with the scene).
+fn parse_region(s: &str) -> Result<Region, String> {
+    let v: Vec<u32> = s
+        .split(',')
+        .map(|c| c.trim().parse::<u32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("expected X0,Y0,X1,Y1 (four pixel coordinates), not {s:?}"))?;
+    let [x0, y0, x1, y1] = v[..] else {
+        return Err(format!("expected X0,Y0,X1,Y1 (four pixel coordinates), not {s:?}"));
+    };
+    if x0 >= x1 || y0 >= y1 {
+        return Err(format!("{s}: empty; columns X0..X1 and rows Y0..Y1 need X0 < X1 and Y0 < Y1"));
+    }
+    Ok(Region { x0, y0, x1, y1 })
+}
+
+/// `K/N` with N >= 1 and 0 <= K < N.
+fn parse_tile(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("expected K/N, band K (0-based) of N, not {s:?}");
+    let (k, n) = s.split_once('/').ok_or_else(bad)?;
+    let (k, n) = (k.trim().parse::<u32>().map_err(|_| bad())?, n.trim().parse::<u32>().map_err(|_| bad())?);
+    if n == 0 || k >= n {
+        return Err(format!("{s}: K must be from 0 to N - 1 (bands are counted from 0), and N at least 1"));
+    }
+    Ok((k, n))
+}
+
 pub fn run(a: RenderArgs) -> Result<()> {
     if let (Some(w), Some(h)) = (a.width, a.height) {
         super::check_image_size(w, h, true)?;
@@ -77,57 +115,69 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let width = a.width.unwrap_or(scene.image.width);
     let height = a.height.unwrap_or(scene.image.height);
     super::check_image_size(width, height, a.width.is_some() || a.height.is_some())?;
+    let region = match (a.region, a.tile) {
+        (Some(r), _) if !r.fits(width, height) => {
+            return Err(super::usage_error(format!("--region {r}: outside the {width}x{height} image")));
+        }
+        (Some(r), _) => r,
+        (None, Some((_, n))) if n > height => {
+            return Err(super::usage_error(format!(
+                "--tile: {n} bands of a {height}-row image would leave some empty; use at most {height}"
+            )));
+        }
+        (None, Some((k, n))) => Region::band(k, n, width, height),
+        (None, None) => Region::whole(width, height),
+    };
     let prep = Prepared::new(scene);
     super::print_scene_summary(&prep);
     let mut frame = prep.frame(width, height);
     frame.seed = a.seed;
-    let samples = width as f64 * height as f64 * frame.spp as f64;
-    let gpu = match a.backend {
-        Some(BackendChoice::Cpu) => None,
-        Some(BackendChoice::Gpu) => Some(GpuContext::new()?),
-        None => match GpuContext::new() {
-            Ok(ctx) => Some(ctx),
-            Err(e) => {
-                eprintln!("gpu backend unavailable ({e}); rendering on the cpu");
-                None
-            }
-        },
+    let samples = region.pixel_count() as f64 * frame.spp as f64;
+    let workload = match mode {
+        RenderMode::Whitted => Workload::Whitted,
+        RenderMode::Path => Workload::Path,
     };
-    let image = match gpu {
-        None => {
-            let bar = progress_bar(height as u64, "cpu");
+    let what = if region == Region::whole(width, height) {
+        format!("{width}x{height}")
+    } else {
+        format!("the region {region} ({}x{} of {width}x{height})", region.width(), region.height())
+    };
+    let progress = Progress::new(samples as u64, "render");
+    let (image, backend, device) = match super::open_backend(a.backend, workload)? {
+        Selected::Cpu => {
             let start = Instant::now();
-            let img = strahl::backend::cpu::render(&prep, &frame, mode, &|rows| bar.set_position(rows));
-            bar.finish_and_clear();
+            let per_row = region.width() as u64 * frame.spp as u64;
+            let img =
+                strahl::backend::cpu::render_region(&prep, &frame, mode, region, &|rows| progress.set(rows * per_row));
+            progress.finish();
             let secs = start.elapsed().as_secs_f64();
+            let threads = rayon::current_num_threads();
             println!(
-                "rendered {width}x{height} at {} spp ({}) on the cpu ({} threads) in {secs:.3} s: {:.2} M samples/s",
+                "rendered {what} at {} spp ({}) on the cpu ({threads} threads) in {secs:.3} s: {:.2} M samples/s",
                 frame.spp,
                 mode.name(),
-                rayon::current_num_threads(),
                 samples / secs / 1e6
             );
-            img
+            (img, "cpu", format!("cpu ({threads} threads)"))
         }
-        Some(ctx) => {
+        Selected::Gpu(ctx) => {
             let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
-            let bar = progress_bar(1, "gpu");
-            let (img, stats) = gpu::render::render(&ctx, &buffers, &frame, mode, buffers.key, &|done, total| {
-                bar.set_length(total);
-                bar.set_position(done)
-            })?;
-            bar.finish_and_clear();
+            let (img, stats) =
+                gpu::render::render_region(&ctx, &buffers, &frame, mode, buffers.key, region, &|done, total| {
+                    // A step is one sample pass over one band.
+                    progress.set(done * samples as u64 / total.max(1))
+                })?;
+            progress.finish();
             let secs = stats.wall.as_secs_f64();
             println!(
-                "rendered {width}x{height} at {} spp ({}) on {} in {secs:.3} s ({} dispatches, shader {} compiled in {:.3} s): {:.2} M samples/s",
+                "rendered {what} at {} spp ({}) on {} in {secs:.3} s ({} dispatches): {:.2} M samples/s",
                 frame.spp,
                 mode.name(),
                 ctx.adapter_name(),
                 stats.dispatches,
-                stats.key.label(),
-                stats.compile_time.as_secs_f64(),
                 samples / secs / 1e6
             );
+            println!("{}", compile_report(&stats));
             if let Some(g) = stats.gpu_time {
                 println!(
                     "gpu time from timestamp queries: {:.3} ms, {:.2} M samples/s",
@@ -135,10 +185,39 @@ pub fn run(a: RenderArgs) -> Result<()> {
                     samples / g.as_secs_f64() / 1e6
                 );
             }
-            img
+            (img, "gpu", ctx.adapter_name())
         }
     };
-    image.save(&a.output)?;
+    let is_exr = a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if is_exr {
+        let description = strahl::parts::Description { scene: &a.scene, mode, backend, device };
+        let placement = ExrPlacement {
+            full: (width, height),
+            region,
+            attributes: strahl::parts::describe(&description, &prep, &frame),
+        };
+        strahl::image::write_exr(&a.output, &image, &placement)?;
+    } else {
+        image.save(&a.output)?;
+    }
     println!("wrote {}", a.output.display());
     Ok(())
+}
+
+/// What preparing the shader cost, as measured: composing it and creating the pipeline, and
+/// the first sample pass, in which drivers that compile at the first dispatch (lavapipe)
+/// compile, beside the later passes where there are any.
+fn compile_report(stats: &gpu::render::RenderStats) -> String {
+    let first = stats.first_pass.as_secs_f64();
+    let later = if stats.passes > 1 {
+        let mean = (stats.wall.as_secs_f64() - first).max(0.0) / (stats.passes - 1) as f64;
+        format!("the later ones {mean:.3} s each")
+    } else {
+        "with the driver's compile where it compiles at the first dispatch (lavapipe)".to_string()
+    };
+    format!(
+        "shader {}: composed and pipeline created in {:.3} s; first sample pass {first:.3} s ({later})",
+        stats.key.label(),
+        stats.compile_time.as_secs_f64()
+    )
 }

@@ -7,6 +7,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 use strahl::backend::gpu::GpuContext;
+use strahl::backend::select::{Selected, Workload};
 use strahl::math::Real;
 use strahl::query::{HITS_HEADER, RayQuery, read_rays, write_hit_rows};
 use strahl::scene::Scene;
@@ -30,8 +31,8 @@ pub struct TraceArgs {
     /// Every intersection along each ray, sorted by t, instead of the nearest.
     #[arg(long)]
     pub all: bool,
-    /// Where to trace (default: gpu for f32, falling back to cpu when no Vulkan adapter
-    /// exists; f64 always runs on the cpu).
+    /// Where to trace (default: STRAHL_BACKEND, else auto: a hardware GPU, else the faster of
+    /// lavapipe and the cpu for ray queries; f64 always runs on the cpu).
     #[arg(long, value_enum)]
     pub backend: Option<BackendChoice>,
     /// Arithmetic: f32 (the GPU's, and the CPU's mirror of it) or f64 (the CPU oracle).
@@ -49,16 +50,11 @@ pub fn run(a: TraceArgs) -> Result<()> {
     let scene = Scene::load(&a.scene)?;
     let rays = read_rays(&a.rays)?;
     let start = Instant::now();
-    let csv = match (a.backend, a.precision) {
-        (_, Precision::F64) => cpu_csv::<f64>(&scene, &rays, a.all),
-        (Some(BackendChoice::Cpu), Precision::F32) => cpu_csv::<f32>(&scene, &rays, a.all),
-        (Some(BackendChoice::Gpu), Precision::F32) => gpu_csv(GpuContext::new()?, &scene, &rays, a.all)?,
-        (None, Precision::F32) => match GpuContext::new() {
-            Ok(ctx) => gpu_csv(ctx, &scene, &rays, a.all)?,
-            Err(e) => {
-                eprintln!("gpu backend unavailable ({e}); tracing on the cpu");
-                cpu_csv::<f32>(&scene, &rays, a.all)
-            }
+    let csv = match a.precision {
+        Precision::F64 => cpu_csv::<f64>(&scene, &rays, a.all),
+        Precision::F32 => match super::open_backend(a.backend, Workload::Trace)? {
+            Selected::Cpu => cpu_csv::<f32>(&scene, &rays, a.all),
+            Selected::Gpu(ctx) => gpu_csv(*ctx, &scene, &rays, a.all)?,
         },
     };
     let secs = start.elapsed().as_secs_f64();

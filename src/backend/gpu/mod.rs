@@ -3,6 +3,7 @@
 //! [`GpuContext`] owns the device and caches one pipeline per (program, [`FeatureKey`]);
 //! [`SceneBuffers`] holds a scene's storage buffers; [`render`] and [`trace`] dispatch.
 
+pub mod instance;
 pub mod render;
 pub mod shaders;
 pub mod shared;
@@ -101,15 +102,7 @@ fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
 impl GpuContext {
     /// Opens the first Vulkan adapter (a discrete GPU preferred).
     pub fn new() -> Result<Self, GpuError> {
-        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
-        desc.backends = wgpu::Backends::VULKAN;
-        let instance = wgpu::Instance::new(desc);
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            ..Default::default()
-        }))
-        .map_err(|_| GpuError::NoAdapter)?;
-        Self::from_adapter(&adapter)
+        Self::from_adapter(&instance::request_adapter()?)
     }
 
     /// What strahl asks of a device on `adapter`: the adapter's own limits (the largest

@@ -5,7 +5,7 @@
 use super::wavefront::Wavefront;
 use super::{CachedPipeline, FeatureKey, GpuContext, GpuError, PathKernels, Program, SceneBuffers};
 use crate::gpu_types::{FRAME_ACCUMULATE, GpuFrame};
-use crate::image::Image;
+use crate::image::{Image, Region};
 use crate::scene::RenderMode;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -29,9 +29,16 @@ pub struct RenderStats {
     /// The same sum per kernel (entry point), where the adapter has timestamp queries.
     pub kernel_times: KernelTimes,
     pub dispatches: u32,
-    /// Time spent compiling the pipeline (zero when it was cached).
+    /// Time spent composing the shader and creating the pipeline (zero when it was cached).
+    /// Drivers that compile at the first dispatch (lavapipe) do so in [`Self::first_pass`].
     pub compile_time: Duration,
     pub key: FeatureKey,
+    /// Wall time from the start of the render to the completion of its first sample pass
+    /// (of the first band). Drivers that compile at the first dispatch (lavapipe) compile here,
+    /// and lavapipe's timestamp queries count that compile as GPU time.
+    pub first_pass: Duration,
+    /// Sample passes run (over all bands).
+    pub passes: u32,
 }
 
 /// The program and entry point that render in `mode`.
@@ -53,19 +60,30 @@ pub fn render(
     key: FeatureKey,
     progress: &dyn Fn(u64, u64),
 ) -> Result<(Image, RenderStats), GpuError> {
-    assert!(scene.runs_with(key), "variant {} cannot render a scene needing {}", key.label(), scene.key.label());
-    if mode == RenderMode::Path && ctx.path_kernels()? == PathKernels::Wavefront {
-        let start = Instant::now();
-        let wf = Wavefront::new(ctx, scene.clone(), key, *frame)?;
-        let (img, kernel_times) = wf.render(ctx, progress)?;
-        let gpu_time = (!kernel_times.is_empty()).then(|| kernel_times.iter().map(|(_, t)| *t).sum());
-        let stats = RenderStats { wall: start.elapsed(), gpu_time, kernel_times, key: wf.key(), ..Default::default() };
-        return Ok((img, stats));
-    }
-    render_tiles(ctx, scene, frame, mode, key, progress)
+    render_region(ctx, scene, frame, mode, key, Region::whole(frame.width, frame.height), progress)
 }
 
-/// [`render`] by tiles: one dispatch of the mode's single kernel (for path tracing the
+/// Renders the pixels of `region` of the image `frame` describes, as [`render`] does the whole
+/// image: every pixel is computed as in a render of the whole image (the shaders index pixels,
+/// rays and random numbers by their place in the whole image), only the tiles cover the region.
+pub fn render_region(
+    ctx: &GpuContext,
+    scene: &SceneBuffers,
+    frame: &GpuFrame,
+    mode: RenderMode,
+    key: FeatureKey,
+    region: Region,
+    progress: &dyn Fn(u64, u64),
+) -> Result<(Image, RenderStats), GpuError> {
+    assert!(scene.runs_with(key), "variant {} cannot render a scene needing {}", key.label(), scene.key.label());
+    if mode == RenderMode::Path && ctx.path_kernels()? == PathKernels::Wavefront {
+        let wf = Wavefront::for_region(ctx, scene.clone(), key, *frame, region)?;
+        return wf.render(ctx, progress);
+    }
+    render_tiles(ctx, scene, frame, mode, key, region, progress)
+}
+
+/// [`render_region`] by tiles: one dispatch of the mode's single kernel (for path tracing the
 /// megakernel) per tile and sample pass.
 pub fn render_tiles(
     ctx: &GpuContext,
@@ -73,25 +91,36 @@ pub fn render_tiles(
     frame: &GpuFrame,
     mode: RenderMode,
     key: FeatureKey,
+    region: Region,
     progress: &dyn Fn(u64, u64),
 ) -> Result<(Image, RenderStats), GpuError> {
+    assert!(region.fits(frame.width, frame.height), "region {region} of a {}x{} image", frame.width, frame.height);
     let (program, entry) = program_for(mode);
     let was_cached = ctx.cached_pipeline(program, key, entry).is_some();
     let pipe = ctx.pipeline(program, key, entry)?;
     let start = Instant::now();
-    let (w, h) = (frame.width, frame.height);
-    let row_bytes = w as u64 * PIXEL_BYTES;
-    let limit = ctx.max_binding_bytes();
-    if row_bytes > limit {
-        return Err(GpuError::TooLarge { what: format!("one {w}-pixel image row"), need: row_bytes, limit });
+    let (w, h) = (region.width(), region.height());
+    let mut img = Image::new(w, h);
+    let mut stats = RenderStats { key: pipe.key, dispatches: 0, ..Default::default() };
+    if img.pixels.is_empty() {
+        return Ok((img, stats));
     }
-    let mut band_rows = (limit / row_bytes).min(h as u64) as u32;
+    let row_bytes = w as u64 * PIXEL_BYTES;
+    // The shaders store pixel (x, y) at (y − out_first_row) · out_pitch + x. With the region's
+    // width as the pitch, its first column x0 lands x0 pixels into the buffer: the buffer
+    // starts with x0 pixels nothing writes, and is read back from there.
+    let lead = region.x0 as u64 * PIXEL_BYTES;
+    let limit = ctx.max_binding_bytes();
+    if row_bytes + lead > limit {
+        return Err(GpuError::TooLarge { what: format!("one {w}-pixel image row"), need: row_bytes + lead, limit });
+    }
+    let mut band_rows = ((limit - lead) / row_bytes).min(h as u64) as u32;
     if band_rows < h && band_rows >= TILE {
         band_rows -= band_rows % TILE;
     }
     let output = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("render output"),
-        size: band_rows as u64 * row_bytes,
+        size: lead + band_rows as u64 * row_bytes,
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
@@ -99,15 +128,13 @@ pub fn render_tiles(
     let tiles_x = w.div_ceil(TILE);
     let max_tiles = tiles_x * band_rows.div_ceil(TILE);
     let timer = ctx.timestamps.then(|| Timer::new(ctx, max_tiles));
-    let mut img = Image::new(w, h);
-    let mut stats = RenderStats { key: pipe.key, dispatches: 0, ..Default::default() };
     let mut gpu_ns = 0.0f64;
     let total_steps = h.div_ceil(band_rows) as u64 * frame.spp as u64;
     let mut step = 0u64;
-    let mut row0 = 0u32;
-    while row0 < h {
-        let rows = band_rows.min(h - row0);
-        let band = Band { width: w, first_row: row0, rows, tile: TILE };
+    let mut row0 = region.y0;
+    while row0 < region.y1 {
+        let rows = band_rows.min(region.y1 - row0);
+        let band = Band { width: w, first_col: region.x0, first_row: row0, rows, tile: TILE };
         for s in 0..frame.spp {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
             let pass_frame = GpuFrame { sample_base: frame.sample_base + s, ..*frame };
@@ -132,14 +159,23 @@ pub fn render_tiles(
             if let Some(t) = &timer {
                 gpu_ns += t.read(ctx, n_tiles)?;
             }
+            if step == 0 {
+                // Wait for the first pass alone: where the driver compiles at the first
+                // dispatch, this is where the compile shows.
+                ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Wgpu(e.to_string()))?;
+                stats.first_pass = start.elapsed();
+            }
             stats.dispatches += n_tiles;
+            stats.passes += 1;
             step += 1;
             progress(step, total_steps);
         }
-        let px: Vec<[f32; 4]> = ctx.read_pod(&output, rows as usize * w as usize)?;
+        let first = region.x0 as usize;
+        let px: Vec<[f32; 4]> = ctx.read_pod(&output, first + rows as usize * w as usize)?;
         let spp = frame.spp as f32;
-        for (i, p) in px.iter().enumerate() {
-            img.pixels[row0 as usize * w as usize + i] = [p[0] / spp, p[1] / spp, p[2] / spp];
+        let at = (row0 - region.y0) as usize * w as usize;
+        for (i, p) in px[first..].iter().enumerate() {
+            img.pixels[at + i] = [p[0] / spp, p[1] / spp, p[2] / spp];
         }
         row0 += rows;
     }
@@ -297,12 +333,16 @@ impl crate::backend::Progressive for PathAccumulator {
     }
 }
 
-/// The rows of the image one output buffer holds, cut into tiles of `tile`×`tile` pixels
-/// (row-major order: tile `i` is column `i % tiles_x`, row `i / tiles_x` of the band).
+/// The pixels of the image one output buffer holds, `rows` rows of `width` columns from
+/// (`first_col`, `first_row`), cut into tiles of `tile`×`tile` pixels (row-major order: tile
+/// `i` is column `i % tiles_x`, row `i / tiles_x` of the band).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Band {
-    /// Image width in pixels (also the output buffer's row pitch).
+    /// Columns in the band (also the output buffer's row pitch): the image width unless only
+    /// a region is rendered.
     pub width: u32,
+    /// First image column of the band (0 unless only a region is rendered).
+    pub first_col: u32,
     /// First image row of the band (row 0 of the output buffer).
     pub first_row: u32,
     pub rows: u32,
@@ -313,7 +353,7 @@ pub struct Band {
 impl Band {
     /// The whole `width`×`height` image as one band (one output buffer).
     pub fn whole(width: u32, height: u32, tile: u32) -> Self {
-        Self { width, first_row: 0, rows: height, tile }
+        Self { width, first_col: 0, first_row: 0, rows: height, tile }
     }
 
     pub fn tiles_x(&self) -> u32 {
@@ -326,9 +366,10 @@ impl Band {
 
     /// Origin (image pixels) and size of tile `i`.
     pub fn tile_rect(&self, i: u32) -> ([u32; 2], [u32; 2]) {
-        let tx = (i % self.tiles_x()) * self.tile;
+        let tx = self.first_col + (i % self.tiles_x()) * self.tile;
         let ty = self.first_row + (i / self.tiles_x()) * self.tile;
-        ([tx, ty], [self.tile.min(self.width - tx), self.tile.min(self.first_row + self.rows - ty)])
+        let end = (self.first_col + self.width, self.first_row + self.rows);
+        ([tx, ty], [self.tile.min(end.0 - tx), self.tile.min(end.1 - ty)])
     }
 }
 

@@ -8,12 +8,12 @@
 //! Which one is faster depends on the device: see the README's figures. `strahl bench` measures
 //! both, with the time of each kernel.
 
-use super::render::{KernelTimes, Timer, stage_frame};
+use super::render::{RenderStats, Timer, stage_frame};
 use super::{CachedPipeline, FeatureKey, GpuContext, GpuError, Program, SceneBuffers};
 use crate::gpu_types::{FRAME_ACCUMULATE, GpuFrame};
-use crate::image::Image;
+use crate::image::{Image, Region};
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Invocations of a wavefront workgroup (`WAVEFRONT_WORKGROUP` in the shader).
 pub const WORKGROUP: u32 = 64;
@@ -58,12 +58,16 @@ const FINISH: usize = 5;
 const PATH_BYTES: [(&str, u64); 6] =
     [("path states", 64), ("hits", 32), ("pending light", 16), ("queue", 4), ("queue", 4), ("shadow rays", 32)];
 
-/// The wavefront tracer's kernels and buffers, for bands of up to `band_rows` rows of the
-/// image (every method takes the context the tracer was made with).
+/// The wavefront tracer's kernels and buffers, for bands of up to `band_rows` rows of a region
+/// of the image (every method takes the context the tracer was made with).
 pub struct Wavefront {
     scene: SceneBuffers,
     frame: GpuFrame,
+    /// The pixels rendered: the whole image, or a part of a split render.
+    region: Region,
     pipelines: Vec<Arc<CachedPipeline>>,
+    /// Time spent creating the kernels' pipelines here (zero for those already cached).
+    compile_time: Duration,
     band_rows: u32,
     counters: wgpu::Buffer,
     /// The indirect dispatch arguments, copied out of `counters` between kernels (a buffer bound
@@ -76,10 +80,24 @@ pub struct Wavefront {
 
 impl Wavefront {
     /// Compiles (or takes from the cache) the kernels for `key` (which must contain the scene's
-    /// features, [`SceneBuffers::runs_with`]) and allocates the queues for `frame` (whole image; its `spp` and `sample_base` are ignored) in bands of
-    /// as many rows as one storage binding holds. Fails, before allocating, where a single row
-    /// does not fit or the device binds too few storage buffers.
+    /// features, [`SceneBuffers::runs_with`]) and allocates the queues for `frame` (whole
+    /// image; its `spp` and `sample_base` are ignored) in bands of as many rows as one storage
+    /// binding holds. Fails, before allocating, where a single row does not fit or the device
+    /// binds too few storage buffers.
     pub fn new(ctx: &GpuContext, scene: SceneBuffers, key: FeatureKey, frame: GpuFrame) -> Result<Self, GpuError> {
+        Self::for_region(ctx, scene, key, frame, Region::whole(frame.width, frame.height))
+    }
+
+    /// [`Wavefront::new`] for the pixels of `region` of the image only: each computed as in a
+    /// render of the whole image (paths are started from their pixel's place in the image).
+    pub fn for_region(
+        ctx: &GpuContext,
+        scene: SceneBuffers,
+        key: FeatureKey,
+        frame: GpuFrame,
+        region: Region,
+    ) -> Result<Self, GpuError> {
+        assert!(region.fits(frame.width, frame.height), "region {region} of a {}x{} image", frame.width, frame.height);
         if !ctx.has_wavefront() {
             return Err(GpuError::Device(format!(
                 "the wavefront path tracer needs {} storage buffers per shader stage, this device offers {}",
@@ -87,14 +105,26 @@ impl Wavefront {
                 ctx.limits.max_storage_buffers_per_shader_stage
             )));
         }
-        let w = frame.width as u64;
+        let w = region.width() as u64;
+        // wf_finish stores pixel (x, y) at (y − out_first_row) · out_pitch + x (raygen's
+        // output_index): with the region's width as the pitch, the output starts with x0
+        // pixels nothing writes, and is read back from there.
+        let lead = 16 * region.x0 as u64;
         let limit = ctx.max_binding_bytes();
         let widest = PATH_BYTES.iter().map(|&(_, b)| b).max().unwrap_or(1).max(16);
-        ctx.check_binding_size(&format!("the wavefront state of one {w}-pixel row"), widest * w)?;
-        let band_rows = ((limit / (widest * w)) as u32).min(frame.height);
+        ctx.check_binding_size(&format!("the wavefront state of one {w}-pixel row"), lead + widest * w)?;
+        let band_rows = (((limit - lead) / (widest * w)) as u32).min(region.height());
         let paths = band_rows as u64 * w;
-        let pipelines =
-            ENTRIES.iter().map(|e| ctx.pipeline(Program::Wavefront, key, e)).collect::<Result<Vec<_>, _>>()?;
+        let mut compile_time = Duration::ZERO;
+        let mut pipelines = Vec::with_capacity(ENTRIES.len());
+        for e in ENTRIES {
+            let cached = ctx.cached_pipeline(Program::Wavefront, key, e).is_some();
+            let p = ctx.pipeline(Program::Wavefront, key, e)?;
+            if !cached {
+                compile_time += p.compile_time;
+            }
+            pipelines.push(p);
+        }
         let storage = |label: &str, bytes: u64, extra: wgpu::BufferUsages| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -116,7 +146,7 @@ impl Wavefront {
             usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let output = storage("wavefront output", 16 * paths, wgpu::BufferUsages::COPY_SRC);
+        let output = storage("wavefront output", lead + 16 * paths, wgpu::BufferUsages::COPY_SRC);
         let group = |queue_in: &wgpu::Buffer, queue_out: &wgpu::Buffer| {
             let buffers = [&state[0], &state[1], &state[2], queue_in, queue_out, &state[5], &counters, &output];
             let entries: Vec<_> = buffers
@@ -131,7 +161,7 @@ impl Wavefront {
             })
         };
         let groups = [group(&state[3], &state[4]), group(&state[4], &state[3])];
-        Ok(Self { scene, frame, pipelines, band_rows, counters, args, output, groups })
+        Ok(Self { scene, frame, region, pipelines, compile_time, band_rows, counters, args, output, groups })
     }
 
     /// The variant the kernels were compiled as.
@@ -139,7 +169,8 @@ impl Wavefront {
         self.pipelines[GENERATE].key
     }
 
-    /// Records one sample pass (sample `sample`) over rows `first_row .. first_row + rows`,
+    /// Records one sample pass (sample `sample`) over rows `first_row .. first_row + rows` of the
+    /// region,
     /// adding to the output with `accumulate`; with a timer, kernel `k` of the pass writes
     /// timestamp pair `first + k`. Returns the kernels recorded, in order.
     #[allow(clippy::too_many_arguments)]
@@ -153,10 +184,10 @@ impl Wavefront {
         accumulate: bool,
         timer: Option<(&Timer, u32)>,
     ) -> Vec<usize> {
-        let w = self.frame.width;
+        let w = self.region.width();
         let n = w * rows;
         let band = GpuFrame {
-            tile_origin: [0, first_row],
+            tile_origin: [self.region.x0, first_row],
             tile_size: [w, rows],
             spp: 1,
             sample_base: sample,
@@ -222,18 +253,21 @@ impl Wavefront {
         2 + 4 * self.frame.max_depth
     }
 
-    /// Renders the whole image at `frame.spp` samples per pixel (band by band, one pass per
-    /// sample), with the GPU time of each kernel where the adapter has timestamp queries.
-    pub fn render(&self, ctx: &GpuContext, progress: &dyn Fn(u64, u64)) -> Result<(Image, KernelTimes), GpuError> {
-        let (w, h) = (self.frame.width, self.frame.height);
+    /// Renders the region at `frame.spp` samples per pixel (band by band, one pass per sample),
+    /// with the GPU time of each kernel where the adapter has timestamp queries.
+    /// `progress(done, total)` is called after each sample pass of each band.
+    pub fn render(&self, ctx: &GpuContext, progress: &dyn Fn(u64, u64)) -> Result<(Image, RenderStats), GpuError> {
+        let start = Instant::now();
+        let r = self.region;
+        let w = r.width();
         let timer = ctx.timestamps.then(|| Timer::new(ctx, self.kernels_per_pass()));
         let mut kernel_ns = [0.0f64; ENTRIES.len()];
-        let mut img = Image::new(w, h);
-        let total = h.div_ceil(self.band_rows) as u64 * self.frame.spp as u64;
-        let mut step = 0;
-        let mut row0 = 0;
-        while row0 < h {
-            let rows = self.band_rows.min(h - row0);
+        let mut img = Image::new(w, r.height());
+        let mut stats = RenderStats { key: self.key(), compile_time: self.compile_time, ..Default::default() };
+        let total = r.height().div_ceil(self.band_rows) as u64 * self.frame.spp as u64;
+        let mut row0 = r.y0;
+        while row0 < r.y1 {
+            let rows = self.band_rows.min(r.y1 - row0);
             for s in 0..self.frame.spp {
                 let mut enc = ctx.device.create_command_encoder(&Default::default());
                 let timing = timer.as_ref().map(|t| (t, 0));
@@ -247,22 +281,32 @@ impl Wavefront {
                         kernel_ns[*k] += ns;
                     }
                 }
-                step += 1;
-                progress(step, total);
+                if stats.passes == 0 {
+                    // Wait for the first pass alone: where the driver compiles at the first
+                    // dispatch, this is where the compile shows.
+                    ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Wgpu(e.to_string()))?;
+                    stats.first_pass = start.elapsed();
+                }
+                stats.passes += 1;
+                stats.dispatches += kernels.len() as u32;
+                progress(stats.passes as u64, total);
             }
-            let px: Vec<[f32; 4]> = ctx.read_pod(&self.output, (rows * w) as usize)?;
+            let lead = r.x0 as usize;
+            let px: Vec<[f32; 4]> = ctx.read_pod(&self.output, lead + (rows * w) as usize)?;
             let spp = self.frame.spp as f32;
-            for (i, p) in px.iter().enumerate() {
-                img.pixels[(row0 * w) as usize + i] = [p[0] / spp, p[1] / spp, p[2] / spp];
+            let at = (row0 - r.y0) as usize * w as usize;
+            for (i, p) in px[lead..].iter().enumerate() {
+                img.pixels[at + i] = [p[0] / spp, p[1] / spp, p[2] / spp];
             }
             row0 += rows;
         }
-        let times = if timer.is_some() {
-            ENTRIES.iter().zip(kernel_ns).map(|(e, ns)| (*e, Duration::from_nanos(ns as u64))).collect()
-        } else {
-            Vec::new()
-        };
-        Ok((img, times))
+        stats.wall = start.elapsed();
+        if timer.is_some() {
+            stats.kernel_times =
+                ENTRIES.iter().zip(kernel_ns).map(|(e, ns)| (*e, Duration::from_nanos(ns as u64))).collect();
+            stats.gpu_time = Some(stats.kernel_times.iter().map(|(_, t)| *t).sum());
+        }
+        Ok((img, stats))
     }
 
     /// Fails unless the whole image fits one band (progressive rendering keeps all its sums).
