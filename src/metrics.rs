@@ -94,11 +94,11 @@ pub fn errors(reference: &Image, test: &Image) -> Result<Errors> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A smooth image in [0.3, 0.7].
-    fn gradient(w: u32, h: u32) -> Image {
+    pub(crate) fn gradient(w: u32, h: u32) -> Image {
         let mut img = Image::new(w, h);
         for (i, p) in img.pixels.iter_mut().enumerate() {
             let (x, y) = ((i as u32 % w) as f32 / w as f32, (i as u32 / w) as f32 / h as f32);

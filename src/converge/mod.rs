@@ -165,18 +165,10 @@ fn fixed_time_batch(spp: u32, seconds: f64, budget: f64, max_spp: u32) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::metrics::tests::gradient;
     use crate::rng::SplitMix64;
     use std::cell::Cell;
     use std::rc::Rc;
-
-    fn gradient(w: u32, h: u32) -> Image {
-        let mut img = Image::new(w, h);
-        for (i, p) in img.pixels.iter_mut().enumerate() {
-            let (x, y) = ((i as u32 % w) as f32 / w as f32, (i as u32 / w) as f32 / h as f32);
-            *p = [0.3 + 0.4 * x, 0.5, 0.3 + 0.4 * y];
-        }
-        img
-    }
 
     /// A progressive mean of `reference` + uniform noise in [−0.3, 0.3) (within [0, 1] for
     /// [`gradient`]): its error falls as 1/sqrt(spp). Adding n samples advances `clock` by n ×
