@@ -7,6 +7,7 @@ pub mod error;
 pub mod file;
 pub mod mesh;
 pub mod polygon;
+pub mod procedural;
 
 pub use error::SceneError;
 
