@@ -17,6 +17,7 @@ pub mod math;
 pub mod metrics;
 pub mod primitives;
 pub mod query;
+pub mod raysets;
 pub mod render;
 pub mod rng;
 pub mod scene;

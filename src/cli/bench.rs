@@ -1,4 +1,5 @@
-//! `strahl bench`: what specialising a shader to its scene buys, on the adapter at hand.
+//! `strahl bench`: what specialising a shader to its scene buys, on the adapter at hand
+//! (`strahl bench rays` is in [`super::bench_rays`]).
 //!
 //! For each scene it measures, for the scene's specialised shader and for the all-features
 //! shader: compile time (composition, pipeline creation, and the first dispatch, where
@@ -8,7 +9,7 @@
 //! absolute times, across machines.
 
 use anyhow::{Context, Result, bail};
-use clap::Args;
+use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use strahl::backend::gpu::{FeatureKey, GpuContext, SceneBuffers, render::render};
@@ -16,7 +17,10 @@ use strahl::render::Prepared;
 use strahl::scene::Scene;
 
 #[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct BenchArgs {
+    #[command(subcommand)]
+    pub command: Option<BenchCommand>,
     /// Scene files (default: assets/scenes/seed.toml and assets/scenes/spheres.toml).
     pub scenes: Vec<PathBuf>,
     /// Timed frames per variant (after one untimed frame).
@@ -33,6 +37,13 @@ pub struct BenchArgs {
     pub compile_only: Option<u32>,
 }
 
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// BVH build time and nearest-hit rays per second on one scene or mesh, on the CPU or
+    /// the GPU, with the ray sets of the Embree anchor benchmark.
+    Rays(super::bench_rays::RaysArgs),
+}
+
 struct Row {
     scene: String,
     variant: String,
@@ -43,6 +54,9 @@ struct Row {
 }
 
 pub fn run(a: BenchArgs) -> Result<()> {
+    if let Some(BenchCommand::Rays(r)) = a.command {
+        return super::bench_rays::run(r);
+    }
     match a.compile_only {
         Some(bits) => {
             let path = a.scenes.first().context("--compile-only needs a scene")?;
