@@ -1,13 +1,13 @@
 //! The two inner tests of the CPU walk, each computed for several lanes at once: a ray against
 //! the eight child boxes of a [`WideNode`], and against the four triangles of a [`LeafBlock`].
 //!
-//! [`Scalar`] loops over the lanes; [`Avx2`] (x86-64 with AVX2, detected at run time) uses
-//! 8-lane boxes and 4-lane triangles with the products of the edge functions in 4-lane f64.
-//! Both perform, per lane, exactly the IEEE operations of the scalar reference — the slab
-//! test of [`super::traverse::slab`] and [`Triangle::intersect`] — in the same order, so the
-//! distances they return are those of brute force bit for bit.
+//! [`Scalar`] loops over the lanes; [`Avx2`] (x86-64 with AVX2 and FMA, detected at run time)
+//! uses 8-lane boxes and 4-lane triangles with the products of the edge functions in 4-lane
+//! f64. The triangle lanes perform exactly the IEEE operations of [`Triangle::intersect`] in
+//! the same order, so the distances are those of brute force bit for bit. The box lanes are
+//! conservative (see [`far_grow`], [`PARALLEL_REACH`], [`widen`]): a box is entered whenever
+//! it may hold a hit in the search interval, so the walk finds what brute force finds.
 
-use super::traverse::safe_inverse;
 use super::wide::{LANES, LeafBlock, WIDTH, WideNode};
 use crate::geometry::Triangle;
 use crate::geometry::triangle::Shear;
@@ -43,14 +43,31 @@ pub fn widen(t: f32) -> f32 {
     if t >= 0.0 { t * (1.0 + SLACK) } else { t * (1.0 - SLACK) }
 }
 
-/// What a ray's tests share, computed once per ray: origin, safe inverse direction (and the
-/// grown one for far planes), which box plane is the near one per axis, and the watertight
-/// test's permutation and shear.
+/// Direction components below this magnitude count as zero (as in
+/// `traverse::safe_inverse`): the ray runs parallel to that axis.
+const TINY: f32 = 1e-30;
+/// The inverse used on an axis the ray runs parallel to, with the sign of the component
+/// (+ for ±0). With it, a box plane at any distance from the origin maps to ±∞ or beyond
+/// ±10³⁰, and a plane through the origin to 0.
+const PARALLEL_INV: f32 = 1e38;
+/// Added on such an axis to the far distance and subtracted from the near one: a ray lying
+/// in a box's face plane stays in the box's slab for ever, where the product alone would say
+/// it leaves the slab at t = 0 (0·inverse). Boxes up to 10⁻⁸ beside the ray on that axis are
+/// entered too, which costs visits, never hits. Real distances are far below 10³⁰.
+const PARALLEL_REACH: f32 = 1e30;
+
+/// What a ray's tests share, computed once per ray: origin, inverse direction (and the grown
+/// one for far planes), which box plane is the near one per axis, and the watertight test's
+/// permutation and shear.
 #[derive(Clone, Copy, Debug)]
 pub struct RayPre {
     pub ray: Ray<f32>,
     pub inv: [f32; 3],
     pub inv_far: [f32; 3],
+    /// Added to near and far slab distances: ∓[`PARALLEL_REACH`] on axes the ray runs
+    /// parallel to, else 0.
+    pub add_near: [f32; 3],
+    pub add_far: [f32; 3],
     /// Byte offsets in a [`WideNode`] of the rows of `bounds` holding the near and the far
     /// plane of each axis (always inside the node's bounds).
     pub near: [usize; 3],
@@ -65,14 +82,21 @@ pub struct RayPre {
 impl RayPre {
     #[inline(always)]
     pub fn new(ray: &Ray<f32>) -> Self {
-        let inv = safe_inverse(ray.dir).to_array();
-        // safe_inverse never returns ±0, so the sign decides which plane is met first.
+        let d = ray.dir.to_array();
+        let parallel = d.map(|c| c.abs() < TINY);
+        let inv: [f32; 3] = std::array::from_fn(|a| match parallel[a] {
+            true if d[a] < 0.0 => -PARALLEL_INV,
+            true => PARALLEL_INV,
+            false => 1.0 / d[a],
+        });
+        // inv is never ±0, so its sign decides which plane is met first.
         const ROW: usize = size_of::<[f32; WIDTH]>();
         let near = std::array::from_fn(|a| ROW * (2 * a + (inv[a] < 0.0) as usize));
         let far = std::array::from_fn(|a| ROW * (2 * a + (inv[a] >= 0.0) as usize));
-        let inv_far = inv.map(|i| i * far_grow());
+        let inv_far = std::array::from_fn(|a| if parallel[a] { inv[a] } else { inv[a] * far_grow() });
+        let add_near = parallel.map(|p| if p { -PARALLEL_REACH } else { 0.0 });
+        let add_far = parallel.map(|p| if p { PARALLEL_REACH } else { 0.0 });
         // Shear::new's arithmetic on arrays, without its per-component dispatch.
-        let d = ray.dir.to_array();
         let m = d.map(f32::abs);
         let kz = if m[0] >= m[1] && m[0] >= m[2] {
             0
@@ -90,7 +114,7 @@ impl RayPre {
         let o = ray.origin.to_array();
         const LANE_ROW: usize = size_of::<[f32; LANES]>();
         let row_k = [kx * LANE_ROW, ky * LANE_ROW, kz * LANE_ROW];
-        Self { ray: *ray, inv, inv_far, near, far, shear, org_k: [o[kx], o[ky], o[kz]], row_k }
+        Self { ray: *ray, inv, inv_far, add_near, add_far, near, far, shear, org_k: [o[kx], o[ky], o[kz]], row_k }
     }
 }
 
@@ -135,8 +159,8 @@ impl Kernels for Scalar {
             let (mut tn, mut tf) = (tmin, f32::INFINITY);
             for a in 0..3 {
                 let row = |off: usize| node.bounds[off / size_of::<[f32; WIDTH]>()][i];
-                let t0 = (row(r.near[a]) - r.ray.origin[a]) * r.inv[a];
-                let t1 = (row(r.far[a]) - r.ray.origin[a]) * r.inv_far[a];
+                let t0 = (row(r.near[a]) - r.ray.origin[a]) * r.inv[a] + r.add_near[a];
+                let t1 = (row(r.far[a]) - r.ray.origin[a]) * r.inv_far[a] + r.add_far[a];
                 tn = if t0 > tn { t0 } else { tn };
                 tf = if t1 < tf { t1 } else { tf };
             }
@@ -186,12 +210,12 @@ pub fn prefetch<T>(p: &T) {
     let _ = p;
 }
 
-/// Whether this CPU runs [`Avx2`].
+/// Whether this CPU runs [`Avx2`] (AVX2 and FMA).
 #[inline]
 pub fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::is_x86_feature_detected!("avx2")
+        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -199,8 +223,8 @@ pub fn has_avx2() -> bool {
     }
 }
 
-/// AVX2 lanes: eight boxes in one register per plane, four triangles in one register per
-/// coordinate, their edge-function products in four f64 lanes.
+/// AVX2 lanes (with FMA): eight boxes in one register per plane, four triangles in one
+/// register per coordinate, their edge-function products in four f64 lanes.
 #[cfg(target_arch = "x86_64")]
 pub struct Avx2;
 
@@ -242,20 +266,38 @@ mod avx2 {
         unsafe {
             let b = (node as *const WideNode).cast::<u8>();
             // RayPre's offsets select rows inside the node.
-            let slab = |a: usize, off: usize, inv: f32| {
+            // (plane − origin)·inverse + addend, fused: with addend 0 exactly the product.
+            let slab = |a: usize, off: usize, inv: f32, add: f32| {
                 let o = _mm256_set1_ps(r.ray.origin[a]);
-                _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(b.add(off).cast()), o), _mm256_set1_ps(inv))
+                let d = _mm256_sub_ps(_mm256_load_ps(b.add(off).cast()), o);
+                _mm256_fmadd_ps(d, _mm256_set1_ps(inv), _mm256_set1_ps(add))
             };
-            let (t0x, t0y, t0z) =
-                (slab(0, r.near[0], r.inv[0]), slab(1, r.near[1], r.inv[1]), slab(2, r.near[2], r.inv[2]));
-            let (t1x, t1y, t1z) =
-                (slab(0, r.far[0], r.inv_far[0]), slab(1, r.far[1], r.inv_far[1]), slab(2, r.far[2], r.inv_far[2]));
-            let tn = _mm256_max_ps(_mm256_max_ps(t0x, t0y), _mm256_max_ps(t0z, _mm256_set1_ps(tmin)));
-            let mut tf = _mm256_min_ps(_mm256_min_ps(t1x, t1y), t1z);
-            if NEG {
-                tf = _mm256_max_ps(tf, _mm256_mul_ps(tf, _mm256_set1_ps(negative_fix())));
-            }
-            let tf = _mm256_min_ps(tf, _mm256_set1_ps(tmax));
+            let near = |a: usize| slab(a, r.near[a], r.inv[a], r.add_near[a]);
+            let far = |a: usize| slab(a, r.far[a], r.inv_far[a], r.add_far[a]);
+            let (t0x, t0y, t0z) = (near(0), near(1), near(2));
+            let (t1x, t1y, t1z) = (far(0), far(1), far(2));
+            let (tn, tf) = if NEG {
+                let tn = _mm256_max_ps(_mm256_max_ps(t0x, t0y), _mm256_max_ps(t0z, _mm256_set1_ps(tmin)));
+                let tf = _mm256_min_ps(_mm256_min_ps(t1x, t1y), t1z);
+                let tf = _mm256_max_ps(tf, _mm256_mul_ps(tf, _mm256_set1_ps(negative_fix())));
+                (tn, _mm256_min_ps(tf, _mm256_set1_ps(tmax)))
+            } else {
+                // With tmin = +0 or more, integer max and min on the bits (a cycle shorter
+                // than the float ones) give the same tn: negative candidates lose to tmin,
+                // non-negative floats order as their bits do. tf may differ from the float
+                // minimum only when it is negative (or −0), where the float comparison
+                // below decides the same way.
+                let i = _mm256_castps_si256;
+                let tn = _mm256_max_epi32(
+                    _mm256_max_epi32(i(t0x), i(t0y)),
+                    _mm256_max_epi32(i(t0z), i(_mm256_set1_ps(tmin))),
+                );
+                let tf = _mm256_min_epi32(
+                    _mm256_min_epi32(i(t1x), i(t1y)),
+                    _mm256_min_epi32(i(t1z), i(_mm256_set1_ps(tmax))),
+                );
+                (_mm256_castsi256_ps(tn), _mm256_castsi256_ps(tf))
+            };
             _mm256_storeu_ps(tnear.as_mut_ptr(), tn);
             _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tn, tf)) as u32
         }

@@ -21,8 +21,19 @@ pub const MAX_LEAF_BLOCKS: usize = 8;
 /// the levels that split an oversized binary leaf (at most log₈ of 2³⁰ primitives).
 pub const MAX_DEPTH: usize = super::bvh::MAX_DEPTH as usize + 12;
 
-/// A child word: an inner node's index, or (top bit set) a leaf.
+/// A child word: an inner node's byte offset divided by 8 (an address the walk forms
+/// without a multiplication), or (top bit set) a leaf.
 pub const LEAF_BIT: u32 = 1 << 31;
+/// A node's size in the units of inner child words.
+const NODE_UNITS: u32 = (size_of::<WideNode>() / 8) as u32;
+
+/// The child word of node `index`.
+fn node_word(index: usize) -> u32 {
+    let word = index as u64 * NODE_UNITS as u64;
+    // Nodes never outnumber primitives, and scenes hold at most 65 million (file::MAX_*).
+    assert!(word < LEAF_BIT as u64, "more than {} BVH nodes", LEAF_BIT / NODE_UNITS);
+    word as u32
+}
 /// Leaf words: bits 28–30 hold the block count minus one.
 const COUNT_SHIFT: u32 = 28;
 /// Leaf words: bit 27 says some lane holds a sphere or cylinder (tested by the scalar code).
@@ -157,11 +168,11 @@ impl WideBvh {
 
     /// The inner node of child word `word`.
     #[inline(always)]
-    pub fn node(&self, word: u32) -> &WideNode {
-        debug_assert!((word as usize) < self.nodes.len());
-        // SAFETY: every inner child word is the index of a node (see `Collapse`); the walk
-        // reads only child words of this tree, starting at the root, 0.
-        unsafe { self.nodes.get_unchecked(word as usize) }
+    pub(crate) fn node(&self, word: u32) -> &WideNode {
+        debug_assert!(word.is_multiple_of(NODE_UNITS) && ((word / NODE_UNITS) as usize) < self.nodes.len());
+        // SAFETY: every inner child word is a node's offset in units of 8 bytes (see
+        // `node_word`); the walk reads only child words of this tree, starting at the root, 0.
+        unsafe { &*self.nodes.as_ptr().cast::<u8>().add(word as usize * 8).cast::<WideNode>() }
     }
 
     /// Bytes held: nodes and leaf blocks (the blocks carry the triangles' vertices and
@@ -310,7 +321,7 @@ impl Collapse<'_> {
             };
             self.nodes[me].child[slot] = word;
         }
-        me as u32
+        node_word(me)
     }
 
     fn children(&self, i: usize) -> [usize; 2] {
@@ -332,7 +343,7 @@ impl Collapse<'_> {
                 set_box(&mut self.nodes[me], slot, bounds.0, bounds.1);
                 self.nodes[me].child[slot] = self.leaf(at, take, bounds, depth + 1);
             }
-            return me as u32;
+            return node_word(me);
         }
         let first_block = self.spans.len() as u32;
         let mut other = false;

@@ -55,7 +55,7 @@ pub fn nearest_scalar(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn nearest_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32) -> Option<Hit<f32>> {
     if tmin >= 0.0 {
         nearest_with::<simd::Avx2, false>(w, prims, ray, tmin, tmax)
@@ -65,7 +65,7 @@ fn nearest_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32,
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn occluded_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32) -> bool {
     if tmin >= 0.0 {
         occluded_with::<simd::Avx2, false>(w, prims, ray, tmin, tmax)
@@ -153,6 +153,148 @@ fn order_children(child: &[u32; WIDTH], mut mask: u32, tnear: &[f32; WIDTH], sta
     list[n - 1] as u32
 }
 
+/// One ray's nearest-hit search, advanced a step (a node or a leaf) at a time, so that
+/// [`nearest_many`] can interleave the searches of several rays.
+struct NearestWalk<'a> {
+    w: &'a WideBvh,
+    prims: &'a Primitives<f32>,
+    pre: RayPre,
+    tmin: f32,
+    best: Nearest<f32>,
+    /// `best`'s search bound, and its widening for box entry distances.
+    bound: f32,
+    cull: f32,
+    /// The next child word to visit.
+    word: u32,
+    running: bool,
+    /// The block of the best triangle hit so far, for its hit record.
+    from_block: Option<&'a LeafBlock>,
+    stack: Stack,
+}
+
+impl<'a> NearestWalk<'a> {
+    #[inline(always)]
+    fn new(w: &'a WideBvh, prims: &'a Primitives<f32>) -> Self {
+        let ray = Ray::new(V3::zero(), V3::new(0.0, 0.0, 1.0));
+        Self {
+            w,
+            prims,
+            pre: RayPre::new(&ray),
+            tmin: 0.0,
+            best: Nearest::new(0.0),
+            bound: 0.0,
+            cull: 0.0,
+            word: 0,
+            running: false,
+            from_block: None,
+            stack: Stack::new(),
+        }
+    }
+
+    /// Starts the search for `ray` in (tmin, tmax); planes are tested here.
+    #[inline(always)]
+    fn start(&mut self, ray: &Ray<f32>, tmin: f32, tmax: f32) {
+        self.best = Nearest::new(tmax);
+        for r in self.prims.plane_refs() {
+            self.prims.offer_nearest(r, ray, tmin, &mut self.best);
+        }
+        self.pre = RayPre::new(ray);
+        // +0 for −0: the integer form of the box test (see simd::Avx2::boxes) needs it.
+        self.tmin = tmin + 0.0;
+        self.bound = self.best.search_bound();
+        self.cull = widen(self.bound);
+        self.word = 0; // the root node
+        self.running = !self.w.is_empty();
+        self.from_block = None;
+        self.stack.len = 0;
+    }
+
+    /// Visits the next node or leaf; false once the search is over.
+    #[inline(always)]
+    fn step<K: Kernels, const NEG: bool>(&mut self) -> bool {
+        let word = self.word;
+        let next = if word & LEAF_BIT == 0 {
+            let node = self.w.node(word);
+            let mut tnear = [0.0f32; WIDTH];
+            // SAFETY: K's features are present (the caller dispatched on them).
+            let mask = unsafe { K::boxes::<NEG>(node, &self.pre, self.tmin, self.cull, &mut tnear) };
+            (mask != 0).then(|| order_children(&node.child, mask, &tnear, &mut self.stack))
+        } else {
+            self.leaf::<K>(word);
+            None
+        };
+        self.word = match next {
+            Some(n) => n,
+            None => match self.stack.pop_within(self.cull) {
+                Some(n) => n,
+                None => {
+                    self.running = false;
+                    return false;
+                }
+            },
+        };
+        true
+    }
+
+    #[inline(always)]
+    fn leaf<K: Kernels>(&mut self, word: u32) {
+        let (blocks, other) = self.w.leaf(word);
+        let mut t = [0.0f32; LANES];
+        // Every block is tested against the bound at the leaf's entry, so that the tests do
+        // not wait on each other; the offers keep the nearest.
+        let bound = self.bound;
+        for block in blocks {
+            // SAFETY: as in `step`.
+            let mut hits = unsafe { K::triangles(block, &self.pre, self.tmin, bound, &mut t) };
+            if hits != 0 {
+                let before = self.best.prim;
+                while hits != 0 {
+                    let lane = hits.trailing_zeros() as usize;
+                    hits &= hits - 1;
+                    self.best.offer(t[lane], PrimRef(block.prim[lane]), Part::Surface);
+                }
+                if self.best.prim != before {
+                    self.from_block = Some(block);
+                }
+            }
+            if other {
+                for &p in &block.prim {
+                    if p != EMPTY_PRIM && !simd::is_triangle(p) {
+                        self.prims.offer_nearest(PrimRef(p), &self.pre.ray, self.tmin, &mut self.best);
+                    }
+                }
+            }
+        }
+        self.bound = self.best.search_bound();
+        self.cull = widen(self.bound);
+    }
+
+    /// The hit record of the search's result.
+    #[inline(always)]
+    fn hit(&self) -> Option<Hit<f32>> {
+        let best = &self.best;
+        if !best.found {
+            return None;
+        }
+        let ray = &self.pre.ray;
+        // A sphere or cylinder found later may have won, even in the same block.
+        let lane = self
+            .from_block
+            .filter(|_| simd::is_triangle(best.prim.0))
+            .and_then(|b| b.prim.iter().position(|&p| p == best.prim.0).map(|lane| (b, lane)));
+        Some(match lane {
+            // The record prims.hit makes, from the copy of the triangle in the block.
+            Some((block, lane)) => {
+                let v = |k: usize| V3::new(block.v[k][0][lane], block.v[k][1][lane], block.v[k][2][lane]);
+                let normal = Triangle { v: [v(0), v(1), v(2)] }.normal(ray, best.t, best.part);
+                let tag = self.w.triangle_tag(best.prim.index());
+                Hit { t: best.t, normal, prim: best.prim, part: best.part, tag, enter: ray.dir.dot(normal) < 0.0 }
+            }
+            _ => self.prims.hit(best.prim, ray, best.t, best.part),
+        })
+    }
+}
+
 #[inline(always)]
 fn nearest_with<K: Kernels, const NEG: bool>(
     w: &WideBvh,
@@ -161,81 +303,108 @@ fn nearest_with<K: Kernels, const NEG: bool>(
     tmin: f32,
     tmax: f32,
 ) -> Option<Hit<f32>> {
-    let mut best = Nearest::new(tmax);
-    for r in prims.plane_refs() {
-        prims.offer_nearest(r, ray, tmin, &mut best);
+    let mut walk = NearestWalk::new(w, prims);
+    walk.start(ray, tmin, tmax);
+    if walk.running {
+        while walk.step::<K, NEG>() {}
     }
-    // The block of the best triangle hit so far, for its hit record.
-    let mut from_block: Option<&LeafBlock> = None;
-    if !w.is_empty() {
-        let pre = RayPre::new(ray);
-        let mut stack = Stack::new();
-        let mut bound = best.search_bound();
-        let mut cull = widen(bound);
-        let mut word = 0u32; // the root node
-        let mut tnear = [0.0f32; WIDTH];
-        let mut t = [0.0f32; LANES];
-        loop {
-            let next = if word & LEAF_BIT == 0 {
-                let node = w.node(word);
-                // SAFETY: K's features are present (the caller dispatched on them).
-                let mask = unsafe { K::boxes::<NEG>(node, &pre, tmin, cull, &mut tnear) };
-                (mask != 0).then(|| order_children(&node.child, mask, &tnear, &mut stack))
-            } else {
-                let (blocks, other) = w.leaf(word);
-                for block in blocks {
-                    // SAFETY: as above.
-                    let mut hits = unsafe { K::triangles(block, &pre, tmin, bound, &mut t) };
-                    if hits != 0 {
-                        let before = best.prim;
-                        while hits != 0 {
-                            let lane = hits.trailing_zeros() as usize;
-                            hits &= hits - 1;
-                            best.offer(t[lane], PrimRef(block.prim[lane]), Part::Surface);
-                        }
-                        if best.prim != before {
-                            from_block = Some(block);
-                            bound = best.search_bound();
-                        }
-                    }
-                    if other {
-                        for &p in &block.prim {
-                            if p != EMPTY_PRIM && !simd::is_triangle(p) {
-                                prims.offer_nearest(PrimRef(p), ray, tmin, &mut best);
-                            }
-                        }
-                        bound = best.search_bound();
-                    }
-                }
-                cull = widen(bound);
-                None
-            };
-            word = match next {
-                Some(n) => n,
-                None => match stack.pop_within(cull) {
-                    Some(n) => n,
-                    None => break,
-                },
-            };
+    walk.hit()
+}
+
+/// [`nearest`] for each of `rays` in (tmin, tmax), into `out` (as long as `rays`). Two
+/// searches advance side by side, so that the processor overlaps the latency of one with the
+/// work of the other; the answers are those of [`nearest`].
+pub fn nearest_many(
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    rays: &[Ray<f32>],
+    tmin: f32,
+    tmax: f32,
+    out: &mut [Option<Hit<f32>>],
+) {
+    assert_eq!(rays.len(), out.len(), "one answer per ray");
+    #[cfg(target_arch = "x86_64")]
+    if simd::has_avx2() {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { nearest_many_avx2(w, prims, rays, tmin, tmax, out) };
+    }
+    if tmin >= 0.0 {
+        nearest_many_with::<Scalar, false>(w, prims, rays, tmin, tmax, out)
+    } else {
+        nearest_many_with::<Scalar, true>(w, prims, rays, tmin, tmax, out)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn nearest_many_avx2(
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    rays: &[Ray<f32>],
+    tmin: f32,
+    tmax: f32,
+    out: &mut [Option<Hit<f32>>],
+) {
+    if tmin >= 0.0 {
+        nearest_many_with::<simd::Avx2, false>(w, prims, rays, tmin, tmax, out)
+    } else {
+        nearest_many_with::<simd::Avx2, true>(w, prims, rays, tmin, tmax, out)
+    }
+}
+
+#[inline(always)]
+fn nearest_many_with<K: Kernels, const NEG: bool>(
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    rays: &[Ray<f32>],
+    tmin: f32,
+    tmax: f32,
+    out: &mut [Option<Hit<f32>>],
+) {
+    let (mut a, mut b) = (NearestWalk::new(w, prims), NearestWalk::new(w, prims));
+    let (mut slot_a, mut slot_b) = (usize::MAX, usize::MAX);
+    let mut next = 0;
+    let mut feed = Feed { rays, tmin, tmax, next: &mut next };
+    feed.refill(&mut a, &mut slot_a, out);
+    feed.refill(&mut b, &mut slot_b, out);
+    while a.running || b.running {
+        if a.running && !a.step::<K, NEG>() {
+            feed.refill(&mut a, &mut slot_a, out);
+        }
+        if b.running && !b.step::<K, NEG>() {
+            feed.refill(&mut b, &mut slot_b, out);
         }
     }
-    if !best.found {
-        return None;
-    }
-    // A sphere or cylinder found later may have won, even in the same block.
-    let lane = from_block
-        .filter(|_| simd::is_triangle(best.prim.0))
-        .and_then(|b| b.prim.iter().position(|&p| p == best.prim.0).map(|lane| (b, lane)));
-    Some(match lane {
-        // The record prims.hit makes, from the copy of the triangle in the block.
-        Some((block, lane)) => {
-            let v = |k: usize| V3::new(block.v[k][0][lane], block.v[k][1][lane], block.v[k][2][lane]);
-            let normal = Triangle { v: [v(0), v(1), v(2)] }.normal(ray, best.t, best.part);
-            let tag = w.triangle_tag(best.prim.index());
-            Hit { t: best.t, normal, prim: best.prim, part: best.part, tag, enter: ray.dir.dot(normal) < 0.0 }
+}
+
+/// The rays [`nearest_many`] has yet to start.
+struct Feed<'r, 'n> {
+    rays: &'r [Ray<f32>],
+    tmin: f32,
+    tmax: f32,
+    next: &'n mut usize,
+}
+
+impl Feed<'_, '_> {
+    /// Writes the answer of the stopped `walk` for ray `slot` (if any), then starts the next
+    /// rays in it until one needs the tree.
+    #[inline(always)]
+    fn refill(&mut self, walk: &mut NearestWalk, slot: &mut usize, out: &mut [Option<Hit<f32>>]) {
+        if *slot != usize::MAX {
+            out[*slot] = walk.hit();
+            *slot = usize::MAX;
         }
-        _ => prims.hit(best.prim, ray, best.t, best.part),
-    })
+        while *self.next < self.rays.len() {
+            walk.start(&self.rays[*self.next], self.tmin, self.tmax);
+            *slot = *self.next;
+            *self.next += 1;
+            if walk.running {
+                return;
+            }
+            out[*slot] = walk.hit();
+            *slot = usize::MAX;
+        }
+    }
 }
 
 #[inline(always)]
@@ -253,6 +422,7 @@ fn occluded_with<K: Kernels, const NEG: bool>(
         return false;
     }
     let pre = RayPre::new(ray);
+    let tmin = tmin + 0.0; // as in NearestWalk::start
     let mut stack = Stack::new();
     let cull = widen(tmax);
     let mut word = 0u32;
@@ -352,6 +522,100 @@ mod tests {
             found += want.is_some_and(|h| h.t < 0.0) as usize;
         }
         assert!(found > 1000, "only {found} hits behind the origin: the test would prove little");
+    }
+
+    /// A grid of unit squares (two triangles each) in the planes z = 0 and x = 0, every
+    /// triangle twice: rays start on box planes (integer coordinates, so slab distances of
+    /// ±0 occur), run along them or through shared edges and vertices, and every hit is a tie
+    /// between two copies, which the smaller reference must win.
+    #[test]
+    fn rays_on_box_planes_and_through_edges_find_the_brute_force_hit() {
+        use crate::geometry::Triangle;
+        use crate::primitives::{Tag, Tagged};
+        let mut p = Primitives::<f32>::default();
+        let mut quad = |a: V3<f32>, b: V3<f32>, c: V3<f32>, d: V3<f32>| {
+            for tri in [[a, b, c], [a, c, d]] {
+                let n = p.triangles.len() as u32;
+                p.triangles.push(Tagged { shape: Triangle { v: tri }, tag: Tag { object: 0, prim: n, material: 0 } });
+            }
+        };
+        for i in -4..4 {
+            for j in -4..4 {
+                let (x, y) = (i as f32, j as f32);
+                quad(
+                    V3::new(x, y, 0.0),
+                    V3::new(x + 1.0, y, 0.0),
+                    V3::new(x + 1.0, y + 1.0, 0.0),
+                    V3::new(x, y + 1.0, 0.0),
+                );
+                quad(
+                    V3::new(0.0, x, y),
+                    V3::new(0.0, x + 1.0, y),
+                    V3::new(0.0, x + 1.0, y + 1.0),
+                    V3::new(0.0, x, y + 1.0),
+                );
+            }
+        }
+        let copies = p.triangles.clone();
+        p.triangles.extend(copies);
+        let bvh = Bvh::build(&p);
+        let w = WideBvh::new(&bvh, &p);
+        let mut rng = TestRng(33);
+        let mut hits = 0;
+        for i in 0..20_000 {
+            let o = V3::new(rng.range(-5.0, 5.0).round(), rng.range(-5.0, 5.0).round(), rng.range(-5.0, 5.0).round());
+            let d = match i % 4 {
+                // Along an axis, either way.
+                0 => [V3::new(1.0, 0.0, 0.0), V3::new(0.0, -1.0, 0.0), V3::new(0.0, 0.0, -1.0)][i / 4 % 3],
+                // Towards a grid vertex or edge midpoint.
+                1 => V3::new(rng.range(-4.0, 4.0).round() * 0.5, rng.range(-4.0, 4.0).round() * 0.5, 0.0) - o,
+                _ => rng.unit_vector(),
+            };
+            if d.length() == 0.0 {
+                continue;
+            }
+            let ray = ray_f32(&Ray::new(o, d.normalize()));
+            let want = p.nearest_brute(&ray, 0.0, f32::INFINITY);
+            assert_eq!(nearest(&w, &p, &ray, 0.0, f32::INFINITY), want, "ray {i}: {ray:?}");
+            assert_eq!(nearest_scalar(&w, &p, &ray, 0.0, f32::INFINITY), want, "scalar, ray {i}: {ray:?}");
+            assert_eq!(occluded(&w, &p, &ray, 0.0, f32::INFINITY), want.is_some(), "occlusion, ray {i}");
+            if let Some(h) = want {
+                assert!(h.prim.index() < p.triangles.len() / 2, "the first copy wins the tie");
+                hits += 1;
+            }
+        }
+        assert!(hits > 5_000, "{hits} hits");
+    }
+
+    /// The interleaved batch answers exactly as ray-by-ray search (and so as brute force),
+    /// whatever the mix of rays that hit, miss, or meet no box at all.
+    #[test]
+    fn batches_answer_as_single_rays() {
+        let prims = mixed_scene(13);
+        let bvh = Bvh::build(&prims);
+        let w = WideBvh::new(&bvh, &prims);
+        let mut rng = TestRng(14);
+        let rays: Vec<Ray<f32>> = (0..5_001)
+            .map(|i| {
+                let r = rng.ray_towards(80.0, V3::zero(), 50.0);
+                // Every seventh ray points away from the scene.
+                let r = if i % 7 == 0 { Ray::new(r.origin * 3.0, r.origin.normalize()) } else { r };
+                ray_f32(&r)
+            })
+            .collect();
+        for (tmin, tmax) in [(0.0, f32::INFINITY), (-20.0, 90.0)] {
+            let mut out = vec![None; rays.len()];
+            nearest_many(&w, &prims, &rays, tmin, tmax, &mut out);
+            for (i, (ray, got)) in rays.iter().zip(&out).enumerate() {
+                assert_eq!(*got, prims.nearest_brute(ray, tmin, tmax), "ray {i} in ({tmin}, {tmax})");
+            }
+        }
+        let mut none: Vec<Option<Hit<f32>>> = Vec::new();
+        nearest_many(&w, &prims, &[], 0.0, 1.0, &mut none);
+        let empty = WideBvh::new(&Bvh::default(), &Primitives::default());
+        let mut out = vec![None; 3];
+        nearest_many(&empty, &Primitives::default(), &rays[..3], 0.0, f32::INFINITY, &mut out);
+        assert_eq!(out, vec![None; 3]);
     }
 
     #[test]
