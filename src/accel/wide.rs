@@ -121,19 +121,29 @@ impl WideBvh {
         if bvh.nodes.is_empty() {
             return WideBvh::default();
         }
-        let count = subtree_counts(bvh);
+        let (count, first) = subtree_ranges(bvh);
         let leaf = leaf_choice(bvh, &count);
-        let mut c = Collapse { bvh, count: &count, leaf: &leaf, nodes: Vec::new(), spans: Vec::new(), depth: 0 };
+        let mut c =
+            Collapse { bvh, count: &count, first: &first, leaf: &leaf, nodes: Vec::new(), spans: Vec::new(), depth: 0 };
         c.nodes.reserve(bvh.nodes.len() / 6 + 1);
         c.spans.reserve(bvh.prim_refs.len() / 2 + 1);
         // The root is always a wide node (with one leaf child if the binary root is a leaf),
         // so the walk starts with a box test of its children.
         c.node_over(0, 1);
         let Collapse { nodes, spans, depth, .. } = c;
+        let refs = |&(first, n): &(u32, u8)| &bvh.prim_refs[first as usize..first as usize + n as usize];
+        // The triangles are read in leaf order, far from their order in `prims`: the loads of
+        // a block 16 ahead are started early, so that their misses overlap.
+        const AHEAD: usize = 16;
         let mut blocks = vec![LeafBlock::EMPTY; spans.len()];
-        blocks.par_chunks_mut(1024).zip(spans.par_chunks(1024)).for_each(|(out, spans)| {
-            for (b, &(first, n)) in out.iter_mut().zip(spans) {
-                fill_block(b, &bvh.prim_refs[first as usize..first as usize + n as usize], prims);
+        blocks.par_chunks_mut(4096).zip(spans.par_chunks(4096)).for_each(|(out, spans)| {
+            for (i, (b, span)) in out.iter_mut().zip(spans).enumerate() {
+                for r in spans.get(i + AHEAD).map_or(&[][..], refs) {
+                    if r.kind() == PrimKind::Triangle {
+                        super::simd::prefetch(&prims.triangles[r.index()]);
+                    }
+                }
+                *b = block(refs(span), prims);
             }
         });
         WideBvh { nodes, blocks, runs: tag_runs(prims), depth }
@@ -208,8 +218,9 @@ fn tag_runs(prims: &Primitives<f32>) -> Vec<TagRun> {
     runs
 }
 
-/// Copies the primitives `refs` (at most four) into block `b`.
-fn fill_block(b: &mut LeafBlock, refs: &[PrimRef], prims: &Primitives<f32>) {
+/// The block of the primitives `refs` (at most four).
+fn block(refs: &[PrimRef], prims: &Primitives<f32>) -> LeafBlock {
+    let mut b = LeafBlock::EMPTY;
     for (lane, r) in refs.iter().enumerate() {
         b.prim[lane] = r.0;
         if r.kind() == PrimKind::Triangle {
@@ -221,6 +232,7 @@ fn fill_block(b: &mut LeafBlock, refs: &[PrimRef], prims: &Primitives<f32>) {
             }
         }
     }
+    b
 }
 
 /// Which binary nodes become leaves of the wide tree: binary leaves, and subtrees of at most
@@ -252,21 +264,27 @@ fn leaf_choice(bvh: &Bvh, count: &[u32]) -> Vec<bool> {
     leaf
 }
 
-/// Primitives under each binary node (the leaves of a subtree hold a contiguous range of
-/// `prim_refs`, starting at its leftmost leaf). Children follow their parents in the array,
-/// so one backward pass suffices.
-fn subtree_counts(bvh: &Bvh) -> Vec<u32> {
+/// The primitives under each binary node: how many, and the first (the leaves of a subtree
+/// hold a contiguous range of `prim_refs`, starting at its leftmost leaf's). Children follow
+/// their parents in the array, so one backward pass suffices.
+fn subtree_ranges(bvh: &Bvh) -> (Vec<u32>, Vec<u32>) {
     let mut count = vec![0u32; bvh.nodes.len()];
+    let mut first = vec![0u32; bvh.nodes.len()];
     for i in (0..bvh.nodes.len()).rev() {
         let n = &bvh.nodes[i];
-        count[i] = if n.is_leaf() { n.count } else { count[i + 1] + count[n.left_or_first as usize] };
+        (count[i], first[i]) = if n.is_leaf() {
+            (n.count, n.left_or_first)
+        } else {
+            (count[i + 1] + count[n.left_or_first as usize], first[i + 1])
+        };
     }
-    count
+    (count, first)
 }
 
 struct Collapse<'a> {
     bvh: &'a Bvh,
     count: &'a [u32],
+    first: &'a [u32],
     leaf: &'a [bool],
     nodes: Vec<WideNode>,
     /// Per leaf block: first primitive (index into `prim_refs`) and how many.
@@ -286,36 +304,34 @@ impl Collapse<'_> {
         self.leaf[i]
     }
 
-    /// The first primitive of binary node `i`'s subtree.
-    fn first_prim(&self, mut i: usize) -> u32 {
-        while !self.bvh.nodes[i].is_leaf() {
-            i += 1;
-        }
-        self.bvh.nodes[i].left_or_first
-    }
-
     /// A wide node over the descendants of binary node `bin` (over `bin` itself when it is
     /// to be a leaf, which only the root can be here). Returns the node's index.
     fn node_over(&mut self, bin: usize, depth: usize) -> u32 {
         self.depth = self.depth.max(depth);
         let me = self.nodes.len();
         self.nodes.push(WideNode::EMPTY);
-        let mut kids: Vec<usize> = if self.is_leaf(bin) { vec![bin] } else { self.children(bin).to_vec() };
+        let mut kids = [0usize; WIDTH];
+        let mut len = 1;
+        if self.is_leaf(bin) {
+            kids[0] = bin;
+        } else {
+            [kids[0], kids[1]] = self.children(bin);
+            len = 2;
+        }
         // Open the child of largest surface area until eight are gathered.
-        while kids.len() < WIDTH {
-            let open = (0..kids.len())
+        while len < WIDTH {
+            let open = (0..len)
                 .filter(|&k| !self.is_leaf(kids[k]))
                 .max_by(|&a, &b| self.area(kids[a]).total_cmp(&self.area(kids[b])));
             let Some(k) = open else { break };
-            let [l, r] = self.children(kids[k]);
-            kids[k] = l;
-            kids.push(r);
+            [kids[k], kids[len]] = self.children(kids[k]);
+            len += 1;
         }
-        for (slot, &k) in kids.iter().enumerate() {
+        for (slot, &k) in kids[..len].iter().enumerate() {
             let n = self.bvh.nodes[k];
             set_box(&mut self.nodes[me], slot, n.bmin, n.bmax);
             let word = if self.is_leaf(k) {
-                self.leaf(self.first_prim(k), self.count[k], (n.bmin, n.bmax), depth)
+                self.leaf(self.first[k], self.count[k], (n.bmin, n.bmax), depth)
             } else {
                 self.node_over(k, depth + 1)
             };

@@ -361,21 +361,24 @@ fn nearest_many_with<K: Kernels, const NEG: bool>(
     tmax: f32,
     out: &mut [Option<Hit<f32>>],
 ) {
-    let (mut a, mut b) = (NearestWalk::new(w, prims), NearestWalk::new(w, prims));
-    let (mut slot_a, mut slot_b) = (usize::MAX, usize::MAX);
+    let mut walks: [NearestWalk; IN_FLIGHT] = std::array::from_fn(|_| NearestWalk::new(w, prims));
+    let mut slots = [usize::MAX; IN_FLIGHT];
     let mut next = 0;
     let mut feed = Feed { rays, tmin, tmax, next: &mut next };
-    feed.refill(&mut a, &mut slot_a, out);
-    feed.refill(&mut b, &mut slot_b, out);
-    while a.running || b.running {
-        if a.running && !a.step::<K, NEG>() {
-            feed.refill(&mut a, &mut slot_a, out);
-        }
-        if b.running && !b.step::<K, NEG>() {
-            feed.refill(&mut b, &mut slot_b, out);
+    for (walk, slot) in walks.iter_mut().zip(&mut slots) {
+        feed.refill(walk, slot, out);
+    }
+    while walks.iter().any(|w| w.running) {
+        for (walk, slot) in walks.iter_mut().zip(&mut slots) {
+            if walk.running && !walk.step::<K, NEG>() {
+                feed.refill(walk, slot, out);
+            }
         }
     }
 }
+
+/// Searches [`nearest_many`] advances side by side.
+const IN_FLIGHT: usize = 4;
 
 /// The rays [`nearest_many`] has yet to start.
 struct Feed<'r, 'n> {
