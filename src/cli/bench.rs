@@ -60,7 +60,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     match a.compile_only {
         Some(bits) => {
             let path = a.scenes.first().context("--compile-only needs a scene")?;
-            let prep = Prepared::new(Scene::load(path)?);
+            let prep = Prepared::try_new(Scene::load(path)?)?;
             let ctx = GpuContext::new()?;
             let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
             println!("{}", first_dispatch(&ctx, &buffers, &prep, FeatureKey(bits))?.as_secs_f64());
@@ -105,7 +105,7 @@ fn bench(a: BenchArgs) -> Result<()> {
     println!("adapter: {}", ctx.adapter_name());
     let mut rows = Vec::new();
     for path in &scenes {
-        let prep = Prepared::new(Scene::load(path)?);
+        let prep = Prepared::try_new(Scene::load(path)?)?;
         let (w, h) = (a.width.unwrap_or(prep.scene.image.width), a.height.unwrap_or(prep.scene.image.height));
         let frame = prep.frame(w, h);
         let rays = w as f64 * h as f64 * frame.spp as f64;

@@ -52,6 +52,10 @@ pub struct RaysArgs {
     /// Print one JSON object instead of the text report.
     #[arg(long)]
     pub json: bool,
+    /// CPU: trace one ray at a time, as the renderers do, instead of the batch query that
+    /// keeps several rays in flight (as `strahl trace` does).
+    #[arg(long)]
+    pub one_at_a_time: bool,
 }
 
 #[derive(serde::Serialize)]
@@ -71,6 +75,8 @@ struct Report {
     ray_set: &'static str,
     rays: usize,
     threads: Option<usize>,
+    /// CPU: "batch" (nearest_many) or "one at a time" (nearest).
+    walk: Option<&'static str>,
     hit_fraction: f64,
     times_s: Vec<f64>,
     median_s: f64,
@@ -84,6 +90,7 @@ pub fn run(a: RaysArgs) -> Result<()> {
     let scaling = spin_scaling(cores);
     let start = Instant::now();
     let scene = load(&a.scene)?;
+    strahl::render::check_memory(&scene, strahl::render::available_memory())?;
     let prims = Primitives::<f32>::from_scene(&scene);
     let load_s = start.elapsed().as_secs_f64();
     if prims.bounded_count() == 0 {
@@ -119,7 +126,7 @@ pub fn run(a: RaysArgs) -> Result<()> {
             let mut hits = 0;
             for _ in 0..a.reps {
                 let t = Instant::now();
-                hits = pool.install(|| cast_cpu(wide, &prims, &rays));
+                hits = pool.install(|| cast_cpu(wide, &prims, &rays, a.one_at_a_time));
                 times.push(t.elapsed());
             }
             (None, 0.0, wide.bytes() as u64, Some(threads), times, hits)
@@ -154,6 +161,7 @@ pub fn run(a: RaysArgs) -> Result<()> {
         },
         rays: rays.len(),
         threads,
+        walk: wide.as_ref().map(|_| if a.one_at_a_time { "one at a time" } else { "batch" }),
         hit_fraction: hits as f64 / rays.len() as f64,
         times_s: times.iter().map(Duration::as_secs_f64).collect(),
         median_s: median,
@@ -174,11 +182,18 @@ fn load(path: &Path) -> Result<Scene> {
     Ok(if is_obj { strahl::scene::procedural::obj_scene(path)? } else { Scene::load(path)? })
 }
 
-/// Nearest hits of `rays` on the current rayon pool; returns how many hit.
-fn cast_cpu(wide: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>]) -> usize {
+/// Nearest hits of `rays` on the current rayon pool, as a batch query or one ray at a time;
+/// returns how many hit.
+fn cast_cpu(wide: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], one_at_a_time: bool) -> usize {
     rays.par_chunks(4096)
         .map(|chunk| {
-            chunk.iter().filter(|r| wide_traverse::nearest(wide, prims, r, 0.0, f32::INFINITY).is_some()).count()
+            if one_at_a_time {
+                chunk.iter().filter(|r| wide_traverse::nearest(wide, prims, r, 0.0, f32::INFINITY).is_some()).count()
+            } else {
+                let mut out = vec![None; chunk.len()];
+                wide_traverse::nearest_many(wide, prims, chunk, 0.0, f32::INFINITY, &mut out);
+                out.iter().filter(|h| h.is_some()).count()
+            }
         })
         .sum()
 }
@@ -246,6 +261,10 @@ fn print_report(r: &Report, cores: usize) {
         r.structure_bytes as f64 / (1 << 20) as f64
     );
     let threads = r.threads.map_or(String::new(), |t| format!(", {t} thread{}", if t == 1 { "" } else { "s" }));
+    let threads = match r.walk {
+        Some(walk) => format!("{threads}, {walk}"),
+        None => threads,
+    };
     println!(
         "{} rays x{} on the {}{threads}: median {:.3} s -> {:.2} M rays/s, {:.1}% hit (reps {})",
         r.ray_set,

@@ -94,7 +94,7 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
         None => Schedule::Doubling { max_spp: a.max_spp },
     };
 
-    let prep = Arc::new(Prepared::new(scene));
+    let prep = Arc::new(Prepared::try_new(scene)?);
     super::print_scene_summary(&prep);
 
     let reference = match &a.reference {

@@ -75,7 +75,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if width as u64 * height as u64 > strahl::scene::file::MAX_IMAGE_PIXELS {
         bail!("{width}x{height} is more than {} pixels", strahl::scene::file::MAX_IMAGE_PIXELS);
     }
-    let prep = Prepared::new(scene);
+    let prep = Prepared::try_new(scene)?;
     super::print_scene_summary(&prep);
     let mut frame = prep.frame(width, height);
     frame.seed = a.seed;

@@ -17,7 +17,7 @@ use super::emitters::{self, area_pdf, emitted_cos};
 use super::sampler::{Sampler, pixel_jitter};
 use super::shade::ShadeInputs;
 use super::spawn::spawn_origin;
-use crate::accel::traverse;
+use crate::accel::wide_traverse;
 use crate::math::{Ray, V3};
 use crate::primitives::PrimKind;
 use crate::scene::MaterialKind;
@@ -61,7 +61,7 @@ pub fn radiance(inp: &ShadeInputs, mut ray: Ray<f32>, rng: &mut Sampler) -> V3<f
     let mut specular = true;
     let mut pdf_bsdf = 0.0f32;
     for seg in 1..=f.max_depth {
-        let Some(hit) = traverse::nearest(inp.bvh, inp.prims, &ray, 0.0, f32::INFINITY) else {
+        let Some(hit) = wide_traverse::nearest(inp.wide, inp.prims, &ray, 0.0, f32::INFINITY) else {
             sum += beta.mul_elem(V3::from_array(f.background));
             break;
         };
@@ -92,7 +92,7 @@ pub fn radiance(inp: &ShadeInputs, mut ray: Ray<f32>, rng: &mut Sampler) -> V3<f
             if fc.max_component() > 0.0 {
                 let origin = spawn_origin(&ray, hit.t, ns);
                 let shadow = Ray::new(origin, ls.dir);
-                if traverse::nearest(inp.bvh, inp.prims, &shadow, 0.0, ls.dist * SHADOW_REACH).is_none() {
+                if !wide_traverse::occluded(inp.wide, inp.prims, &shadow, 0.0, ls.dist * SHADOW_REACH) {
                     let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
                     sum += beta.mul_elem(fc).mul_elem(ls.value) * w;
                 }
