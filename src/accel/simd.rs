@@ -5,7 +5,7 @@
 //! uses 8-lane boxes and 4-lane triangles with the products of the edge functions in 4-lane
 //! f64. The triangle lanes perform exactly the IEEE operations of [`Triangle::intersect`] in
 //! the same order, so the distances are those of brute force bit for bit. The box lanes are
-//! conservative (see [`far_grow`], [`PARALLEL_REACH`], [`widen`]): a box is entered whenever
+//! conservative (see [`far_grow`], [`PARALLEL_INV`], [`widen`]): a box is entered whenever
 //! it may hold a hit in the search interval, so the walk finds what brute force finds.
 
 use super::wide::{LANES, LeafBlock, WIDTH, WideNode};
@@ -47,14 +47,19 @@ pub fn widen(t: f32) -> f32 {
 /// `traverse::safe_inverse`): the ray runs parallel to that axis.
 const TINY: f32 = 1e-30;
 /// The inverse used on an axis the ray runs parallel to, with the sign of the component
-/// (+ for ±0). With it, a box plane at any distance from the origin maps to ±∞ or beyond
-/// ±10³⁰, and a plane through the origin to 0.
+/// (+ for ±0). On that axis the near planes are measured from the origin moved forward by
+/// [`parallel_shift`], the far planes from it moved back, so that a ray in a box's slab,
+/// even in one of its face planes, gets slab distances of −10³⁰ or less and 10³⁰ or more
+/// (a plane through the exact origin would give 0·inverse = 0: the ray would leave the slab
+/// at once). Boxes beside the ray by less than the shift are entered too, which costs
+/// visits, never hits. Real distances are far below 10³⁰.
 const PARALLEL_INV: f32 = 1e38;
-/// Added on such an axis to the far distance and subtracted from the near one: a ray lying
-/// in a box's face plane stays in the box's slab for ever, where the product alone would say
-/// it leaves the slab at t = 0 (0·inverse). Boxes up to 10⁻⁸ beside the ray on that axis are
-/// entered too, which costs visits, never hits. Real distances are far below 10³⁰.
-const PARALLEL_REACH: f32 = 1e30;
+
+/// The shift of [`PARALLEL_INV`]: 2⁻¹⁶ of the coordinate, at least 10⁻⁶, so that planes at
+/// the origin end up 10⁻⁶ or more away (10³² after the inverse).
+fn parallel_shift(o: f32) -> f32 {
+    (o.abs() * (1.0 / 65536.0)).max(1e-6)
+}
 
 /// What a ray's tests share, computed once per ray: origin, inverse direction (and the grown
 /// one for far planes), which box plane is the near one per axis, and the watertight test's
@@ -64,10 +69,10 @@ pub struct RayPre {
     pub ray: Ray<f32>,
     pub inv: [f32; 3],
     pub inv_far: [f32; 3],
-    /// Added to near and far slab distances: ∓[`PARALLEL_REACH`] on axes the ray runs
-    /// parallel to, else 0.
-    pub add_near: [f32; 3],
-    pub add_far: [f32; 3],
+    /// The origin near and far planes are measured from: the origin, or on axes the ray runs
+    /// parallel to, the origin moved forward and back (see [`PARALLEL_INV`]).
+    pub org_near: [f32; 3],
+    pub org_far: [f32; 3],
     /// Byte offsets in a [`WideNode`] of the rows of `bounds` holding the near and the far
     /// plane of each axis (always inside the node's bounds).
     pub near: [usize; 3],
@@ -94,8 +99,10 @@ impl RayPre {
         let near = std::array::from_fn(|a| ROW * (2 * a + (inv[a] < 0.0) as usize));
         let far = std::array::from_fn(|a| ROW * (2 * a + (inv[a] >= 0.0) as usize));
         let inv_far = std::array::from_fn(|a| if parallel[a] { inv[a] } else { inv[a] * far_grow() });
-        let add_near = parallel.map(|p| if p { -PARALLEL_REACH } else { 0.0 });
-        let add_far = parallel.map(|p| if p { PARALLEL_REACH } else { 0.0 });
+        let o = ray.origin.to_array();
+        let shift = |a: usize| if parallel[a] { parallel_shift(o[a]).copysign(inv[a]) } else { 0.0 };
+        let org_near = std::array::from_fn(|a| o[a] + shift(a));
+        let org_far = std::array::from_fn(|a| o[a] - shift(a));
         // Shear::new's arithmetic on arrays, without its per-component dispatch.
         let m = d.map(f32::abs);
         let kz = if m[0] >= m[1] && m[0] >= m[2] {
@@ -111,10 +118,9 @@ impl RayPre {
         }
         let sz = 1.0 / d[kz];
         let shear = Shear { kx, ky, kz, sx: d[kx] * sz, sy: d[ky] * sz, sz };
-        let o = ray.origin.to_array();
         const LANE_ROW: usize = size_of::<[f32; LANES]>();
         let row_k = [kx * LANE_ROW, ky * LANE_ROW, kz * LANE_ROW];
-        Self { ray: *ray, inv, inv_far, add_near, add_far, near, far, shear, org_k: [o[kx], o[ky], o[kz]], row_k }
+        Self { ray: *ray, inv, inv_far, org_near, org_far, near, far, shear, org_k: [o[kx], o[ky], o[kz]], row_k }
     }
 }
 
@@ -159,8 +165,8 @@ impl Kernels for Scalar {
             let (mut tn, mut tf) = (tmin, f32::INFINITY);
             for a in 0..3 {
                 let row = |off: usize| node.bounds[off / size_of::<[f32; WIDTH]>()][i];
-                let t0 = (row(r.near[a]) - r.ray.origin[a]) * r.inv[a] + r.add_near[a];
-                let t1 = (row(r.far[a]) - r.ray.origin[a]) * r.inv_far[a] + r.add_far[a];
+                let t0 = (row(r.near[a]) - r.org_near[a]) * r.inv[a];
+                let t1 = (row(r.far[a]) - r.org_far[a]) * r.inv_far[a];
                 tn = if t0 > tn { t0 } else { tn };
                 tf = if t1 < tf { t1 } else { tf };
             }
@@ -210,12 +216,12 @@ pub fn prefetch<T>(p: &T) {
     let _ = p;
 }
 
-/// Whether this CPU runs [`Avx2`] (AVX2 and FMA).
+/// Whether this CPU runs [`Avx2`].
 #[inline]
 pub fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+        std::is_x86_feature_detected!("avx2")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -223,8 +229,8 @@ pub fn has_avx2() -> bool {
     }
 }
 
-/// AVX2 lanes (with FMA): eight boxes in one register per plane, four triangles in one
-/// register per coordinate, their edge-function products in four f64 lanes.
+/// AVX2 lanes: eight boxes in one register per plane, four triangles in one register per
+/// coordinate, their edge-function products in four f64 lanes.
 #[cfg(target_arch = "x86_64")]
 pub struct Avx2;
 
@@ -266,14 +272,12 @@ mod avx2 {
         unsafe {
             let b = (node as *const WideNode).cast::<u8>();
             // RayPre's offsets select rows inside the node.
-            // (plane − origin)·inverse + addend, fused: with addend 0 exactly the product.
-            let slab = |a: usize, off: usize, inv: f32, add: f32| {
-                let o = _mm256_set1_ps(r.ray.origin[a]);
-                let d = _mm256_sub_ps(_mm256_load_ps(b.add(off).cast()), o);
-                _mm256_fmadd_ps(d, _mm256_set1_ps(inv), _mm256_set1_ps(add))
+            let slab = |off: usize, o: f32, inv: f32| {
+                let d = _mm256_sub_ps(_mm256_load_ps(b.add(off).cast()), _mm256_set1_ps(o));
+                _mm256_mul_ps(d, _mm256_set1_ps(inv))
             };
-            let near = |a: usize| slab(a, r.near[a], r.inv[a], r.add_near[a]);
-            let far = |a: usize| slab(a, r.far[a], r.inv_far[a], r.add_far[a]);
+            let near = |a: usize| slab(r.near[a], r.org_near[a], r.inv[a]);
+            let far = |a: usize| slab(r.far[a], r.org_far[a], r.inv_far[a]);
             let (t0x, t0y, t0z) = (near(0), near(1), near(2));
             let (t1x, t1y, t1z) = (far(0), far(1), far(2));
             let (tn, tf) = if NEG {
