@@ -506,34 +506,33 @@ impl Bvh {
     /// Builds over every bounded primitive of `prims` (planes stay outside).
     pub fn build<R: Real>(prims: &Primitives<R>) -> Bvh {
         let refs: Vec<PrimRef> = prims.bounded_refs().collect();
-        let mut items: Vec<Item> = refs
-            .par_iter()
-            .with_min_len(4096)
-            .map(|&prim| {
-                let (lo, hi) = match prim.kind() {
-                    // Min and max are exact, so only the conversion to f32 rounds.
-                    PrimKind::Triangle => {
-                        let v = &prims.triangles[prim.index()].shape.v;
-                        let lo = v[0].min_elem(v[1]).min_elem(v[2]).to_f64();
-                        let hi = v[0].max_elem(v[1]).max_elem(v[2]).to_f64();
-                        outward(lo, hi)
-                    }
-                    _ => {
-                        let (lo, hi) = prims.bounds_f64(prim);
-                        outward(lo, hi)
-                    }
-                };
-                Item { lo: [lo[0], lo[1], lo[2], f32::from_bits(prim.0)], hi }
-            })
-            .collect();
+        let mut items: Vec<Item> = super::huge_pages::vec_with_capacity(refs.len());
+        items.par_extend(refs.par_iter().with_min_len(4096).map(|&prim| {
+            let (lo, hi) = match prim.kind() {
+                // Min and max are exact, so only the conversion to f32 rounds.
+                PrimKind::Triangle => {
+                    let v = &prims.triangles[prim.index()].shape.v;
+                    let lo = v[0].min_elem(v[1]).min_elem(v[2]).to_f64();
+                    let hi = v[0].max_elem(v[1]).max_elem(v[2]).to_f64();
+                    outward(lo, hi)
+                }
+                _ => {
+                    let (lo, hi) = prims.bounds_f64(prim);
+                    outward(lo, hi)
+                }
+            };
+            Item { lo: [lo[0], lo[1], lo[2], f32::from_bits(prim.0)], hi }
+        }));
         if items.is_empty() {
             return Bvh::default();
         }
         let span = items.par_chunks(1 << 16).map(Span::of).reduce(|| Span::EMPTY, |a, b| a.join(&b));
         let root = build_parallel(&mut items, 0, &span, 1);
-        let mut nodes = Vec::with_capacity(root.len());
+        let mut nodes = super::huge_pages::vec_with_capacity(root.len());
         let depth = root.flatten_into(&mut nodes);
-        Bvh { nodes, prim_refs: items.par_iter().map(Item::prim).collect(), depth }
+        let mut prim_refs = super::huge_pages::vec_with_capacity(items.len());
+        prim_refs.par_extend(items.par_iter().map(Item::prim));
+        Bvh { nodes, prim_refs, depth }
     }
 
     pub fn is_empty(&self) -> bool {

@@ -4,6 +4,7 @@
 //! ([`wide`], [`wide_traverse`]) with lane-parallel box and triangle tests ([`simd`]).
 
 pub mod bvh;
+pub mod huge_pages;
 pub mod simd;
 pub mod traverse;
 pub mod wide;

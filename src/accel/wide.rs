@@ -125,7 +125,9 @@ impl WideBvh {
         let leaf = leaf_choice(bvh, &count);
         let mut c =
             Collapse { bvh, count: &count, first: &first, leaf: &leaf, nodes: Vec::new(), spans: Vec::new(), depth: 0 };
-        c.nodes.reserve(bvh.nodes.len() / 6 + 1);
+        // Room for more nodes than collapses make (about a tenth of the binary ones), so that
+        // the advice for huge pages covers them; untouched room costs no memory.
+        c.nodes = super::huge_pages::vec_with_capacity(bvh.nodes.len() / 4 + 64);
         c.spans.reserve(bvh.prim_refs.len() / 2 + 1);
         // The root is always a wide node (with one leaf child if the binary root is a leaf),
         // so the walk starts with a box test of its children.
@@ -135,7 +137,8 @@ impl WideBvh {
         // The triangles are read in leaf order, far from their order in `prims`: the loads of
         // a block 16 ahead are started early, so that their misses overlap.
         const AHEAD: usize = 16;
-        let mut blocks = vec![LeafBlock::EMPTY; spans.len()];
+        let mut blocks = super::huge_pages::vec_with_capacity(spans.len());
+        blocks.resize(spans.len(), LeafBlock::EMPTY);
         blocks.par_chunks_mut(4096).zip(spans.par_chunks(4096)).for_each(|(out, spans)| {
             for (i, (b, span)) in out.iter_mut().zip(spans).enumerate() {
                 for r in spans.get(i + AHEAD).map_or(&[][..], refs) {
