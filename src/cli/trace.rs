@@ -41,6 +41,7 @@ pub struct TraceArgs {
 
 pub fn run(a: TraceArgs) -> Result<()> {
     let scene = Scene::load(&a.scene)?;
+    strahl::render::check_memory(&scene, strahl::render::available_memory())?;
     let rays = read_rays(&a.rays)?;
     let start = Instant::now();
     let csv = match (a.backend, a.precision) {
@@ -75,7 +76,7 @@ fn cpu_csv<R: Real>(scene: &Scene, rays: &[RayQuery], all: bool) -> String {
 
 fn gpu_csv(ctx: GpuContext, scene: &Scene, rays: &[RayQuery], all: bool) -> Result<String> {
     use strahl::backend::gpu::{SceneBuffers, trace};
-    let prep = strahl::render::Prepared::try_new(scene.clone())?;
+    let prep = strahl::render::Prepared::new(scene.clone());
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
     let hits = trace::trace(&ctx, &buffers, rays, all)?;
     eprintln!("traced on {}", ctx.adapter_name());
