@@ -1,10 +1,16 @@
-// The scene's storage buffers (group 0), uploaded once per scene. A binding is declared only
-// in variants whose defs use it; empty arrays are bound to a one-element dummy buffer.
+// The scene's storage buffers (group 0), uploaded once per scene, and the per-dispatch frame.
+// A binding is declared only in variants whose defs use it; empty arrays are bound to a
+// one-element dummy buffer.
+//
+// The frame is a read-only storage buffer, not a uniform: lavapipe (Mesa 22.3) folds the values
+// of uniforms that steer branches and loops into a new compiled copy of the shader every time
+// the pipeline is bound, and never frees it: 1.4 MB and ~10 ms per sample pass of the seed
+// scene (tests/gpu_memory.rs). Storage buffers are not folded.
 #define_import_path strahl::bindings
 
 #import strahl::types::{Frame, Material, Light, Emitter}
 #ifdef BVH
-#import strahl::types::BvhNode
+#import strahl::types::Node
 #endif
 #ifdef SPHERES
 #import strahl::types::Sphere
@@ -16,10 +22,10 @@
 #import strahl::types::Plane
 #endif
 #ifdef TRIANGLES
-#import strahl::types::Triangle
+#import strahl::types::{Triangle, LeafTriangle}
 #endif
 
-@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(0) var<storage, read> frame: Frame;
 #ifdef SPHERES
 @group(0) @binding(1) var<storage, read> spheres: array<Sphere>;
 #endif
@@ -33,8 +39,20 @@
 @group(0) @binding(4) var<storage, read> triangles: array<Triangle>;
 #endif
 #ifdef BVH
-@group(0) @binding(5) var<storage, read> nodes: array<BvhNode>;
-@group(0) @binding(6) var<storage, read> prim_refs: array<u32>;
+// With LOAD64 the nodes and leaf triangles are read as 64-bit words (strahl::traverse::fetch_node).
+#ifdef LOAD64
+@group(0) @binding(5) var<storage, read> nodes: array<vec2<u64>>;
+#else
+@group(0) @binding(5) var<storage, read> nodes: array<Node>;
+#endif
+@group(0) @binding(6) var<storage, read> shape_refs: array<u32>;
+#ifdef TRIANGLES
+#ifdef LOAD64
+@group(0) @binding(10) var<storage, read> leaf_triangles: array<vec2<u64>>;
+#else
+@group(0) @binding(10) var<storage, read> leaf_triangles: array<LeafTriangle>;
+#endif
+#endif
 #endif
 @group(0) @binding(7) var<storage, read> materials: array<Material>;
 @group(0) @binding(8) var<storage, read> lights: array<Light>;

@@ -3,7 +3,7 @@
 #define_import_path strahl::cylinder
 
 #import strahl::types::{Cylinder, PART_SURFACE, PART_CAP_P1, PART_CAP_P2}
-#import strahl::roots::{Roots, roots_empty, roots_push, stable_quadratic}
+#import strahl::roots::{Roots, roots_empty, roots_push, stable_quadratic, unit_or}
 
 // Root of the cap disk (centre c, unit normal n), or -1 with .y = 0 when missed.
 fn cap_root(radius: f32, o: vec3<f32>, d: vec3<f32>, c: vec3<f32>, n: vec3<f32>) -> vec2<f32> {
@@ -79,8 +79,9 @@ fn cylinder_normal(cy: Cylinder, o: vec3<f32>, d: vec3<f32>, t: f32, part: u32) 
     if part == PART_CAP_P2 {
         return axis;
     }
+    // Facing the ray where the hit point rounds onto the axis (unit_or).
     let q = (o - cy.pa) + d * t;
-    return normalize(q - axis * dot(q, axis));
+    return unit_or(q - axis * dot(q, axis), -d);
 }
 
 // Keeps (t, part) as the best candidate if it lies in (tmin, tmax) and below the best so far;

@@ -1,8 +1,9 @@
-// Light sampling for next-event estimation: twin of src/render/emitters.rs (emitters chosen in
-// proportion to power by inverting their cdf, points uniform on the chosen triangle or sphere).
+// Light sampling for next-event estimation: twin of src/render/emitters.rs (area emitters chosen
+// in proportion to power by inverting their cdf, points uniform on the chosen triangle or
+// sphere; point and directional lights evaluated one by one at every vertex, not chosen).
 #define_import_path strahl::emitters
 
-#import strahl::types::{Emitter, EMITTER_LIGHT, LIGHT_POINT, KIND_TRIANGLE, INDEX_BITS, INDEX_MASK, MATERIAL_TWO_SIDED, F32_MAX}
+#import strahl::types::{Emitter, Light, LIGHT_POINT, LIGHT_STAND_IN, KIND_TRIANGLE, INDEX_BITS, INDEX_MASK, MATERIAL_TWO_SIDED, F32_MAX}
 #import strahl::bindings::{frame, emitters, lights, materials}
 #ifdef TRIANGLES
 #import strahl::bindings::triangles
@@ -18,8 +19,8 @@ struct LightSample {
     dist: f32,
     // Radiance (area) or normal irradiance (point, directional) divided by pdf.
     value: vec3<f32>,
+    // 1 for a point or directional light.
     pdf: f32,
-    delta: bool,
     valid: bool,
 }
 
@@ -49,22 +50,32 @@ fn area_pdf(radiance: vec3<f32>, d2: f32, cos_l: f32) -> f32 {
     return mean3(radiance) * frame.emitter_norm * d2 / cos_l;
 }
 
+// Point or directional light l seen from p (render::emitters::delta_light): invalid for a
+// Whitted stand-in and for a point light at p.
+fn delta_light(l: Light, p: vec3<f32>) -> LightSample {
+    let none = LightSample(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, false);
+    if (l.flags & LIGHT_STAND_IN) != 0u {
+        return none;
+    }
+    if l.kind == LIGHT_POINT {
+        let to = l.vector - p;
+        let d2 = dot(to, to);
+        if !(d2 > 0.0) {
+            return none;
+        }
+        let dist = sqrt(d2);
+        return LightSample(to / dist, dist, l.intensity / d2, 1.0, true);
+    }
+    return LightSample(-l.vector, F32_MAX, l.intensity, 1.0, true);
+}
+
+// An area-light sample for p from three uniform numbers (render::emitters::sample).
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
-    let none = LightSample(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, false, false);
+    let none = LightSample(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, false);
     if frame.num_emitters == 0u {
         return none;
     }
     let e = emitters[select_emitter(u.x)];
-    if e.kind == EMITTER_LIGHT {
-        let l = lights[e.prim];
-        if l.kind == LIGHT_POINT {
-            let to = l.vector - p;
-            let d2 = dot(to, to);
-            let dist = sqrt(d2);
-            return LightSample(to / dist, dist, l.intensity / (d2 * e.pdf), e.pdf, true, true);
-        }
-        return LightSample(-l.vector, F32_MAX, l.intensity / e.pdf, e.pdf, true, true);
-    }
     let kind = e.prim >> INDEX_BITS;
     let i = e.prim & INDEX_MASK;
     var q = vec3<f32>(0.0);
@@ -108,5 +119,5 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         return none;
     }
     let pdf = area_pdf(m.radiance, d2, cos_l);
-    return LightSample(dir, dist, m.radiance / pdf, pdf, false, true);
+    return LightSample(dir, dist, m.radiance / pdf, pdf, true);
 }

@@ -24,7 +24,8 @@ struct Present {
     pad1: f32,
 }
 
-@group(0) @binding(0) var<uniform> p: Present;
+// Storage, not uniform, for the reason in bindings.wgsl (one present pass per UI frame).
+@group(0) @binding(0) var<storage, read> p: Present;
 @group(0) @binding(1) var<storage, read> accum: array<vec4<f32>>;
 @group(0) @binding(2) var image: texture_storage_2d<rgba8unorm, write>;
 

@@ -1,6 +1,16 @@
 // Root lists and the stable quadratic: twin of src/geometry/mod.rs.
 #define_import_path strahl::roots
 
+// n normalised, or fallback where n is zero or its squared length overflows (geometry::unit_or):
+// no NaN leaves a normal.
+fn unit_or(n: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let l2 = dot(n, n);
+    if l2 > 0.0 && l2 <= 3.40282347e38 {
+        return normalize(n);
+    }
+    return fallback;
+}
+
 // Up to four roots of one primitive, ascending in t.
 struct Roots {
     t: array<f32, 4>,

@@ -7,15 +7,15 @@
 
 #import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, LIGHT_POINT, F32_MAX}
 #import strahl::bindings::{frame, materials, lights}
-#import strahl::traverse::{nearest_hit, prim_normal, prim_tag}
+#import strahl::traverse::{nearest_hit, occluded, hit_normal, hit_material}
 #import strahl::spawn::spawn_origin
 #import strahl::raygen::primary_ray
 
 // Depth of the explicit ray stack (render::shade::WHITTED_STACK).
-const WHITTED_STACK: u32 = 16u;
+const WHITTED_STACK: u32 = #{WHITTED_STACK};
 // Traversals a shadow ray may make: it crosses at most SHADOW_PASSES - 1 dielectric surfaces
 // (render::shade::SHADOW_PASSES).
-const SHADOW_PASSES: u32 = 8u;
+const SHADOW_PASSES: u32 = #{SHADOW_PASSES};
 const INV_PI: f32 = 0.31830988618379067;
 
 struct Pending {
@@ -51,6 +51,10 @@ fn refract_dir(d: vec3<f32>, n: vec3<f32>, cos_i: f32, eta_ratio: f32) -> vec3<f
 // dielectric colours crossed otherwise.
 fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec3<f32>, dist: f32) -> vec3<f32> {
     var origin = spawn_origin(o, d, t, n);
+#ifndef SHADOW_CROSSING
+    // Every surface is opaque: any hit blocks the light.
+    return select(vec3<f32>(1.0), vec3<f32>(0.0), occluded(origin, l, 0.0, dist));
+#else
     var remaining = dist;
     var tr = vec3<f32>(1.0);
     for (var pass_ = 0u; pass_ < SHADOW_PASSES; pass_ += 1u) {
@@ -58,23 +62,20 @@ fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec
         if !hit.found {
             return tr;
         }
-#ifdef SHADOW_CROSSING
         // Dielectrics tint the shadow ray; emissive surfaces (lights) let it through.
-        let m = materials[prim_tag(hit.prim).z];
+        let m = materials[hit_material(hit)];
         if m.kind == MAT_DIELECTRIC {
             tr = tr * m.color;
         } else if m.kind != MAT_EMISSIVE {
             return vec3<f32>(0.0);
         }
-        let hn = prim_normal(hit.prim, origin, l, hit.t, hit.part);
+        let hn = hit_normal(hit, origin, l);
         let side = select(hn, -hn, dot(l, hn) < 0.0);
         origin = spawn_origin(origin, l, hit.t, side);
         remaining -= hit.t;
-#else
-        return vec3<f32>(0.0);
-#endif
     }
     return vec3<f32>(0.0);
+#endif
 }
 #endif
 
@@ -133,9 +134,8 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
             color += cur.weight * frame.background;
             continue;
         }
-        let tag = prim_tag(hit.prim);
-        let m = materials[tag.z];
-        let n = prim_normal(hit.prim, cur.origin, cur.dir, hit.t, hit.part);
+        let m = materials[hit_material(hit)];
+        let n = hit_normal(hit, cur.origin, cur.dir);
         let front = dot(cur.dir, n) < 0.0;
         let ns = select(-n, n, front);
         var handled = false;

@@ -1,6 +1,7 @@
 // Secondary-ray origins: twin of src/render/spawn.rs (Wachter & Binder, Ray Tracing Gems ch. 6,
-// with the ULP measured at |p0_i| + |t|, the magnitude that bounds the error of p_i, and 32
-// steps: see there for why and for the measurements).
+// with the ULP measured at |p0_i| + |t|, the magnitude that bounds the error of p_i, 32 steps,
+// and no fixed step near the origin, so the offset is relative at every scale: see there for
+// why and for the measurements).
 #define_import_path strahl::spawn
 
 // One ULP of the positive finite float m, exactly (integer arithmetic on its bits).
@@ -8,12 +9,12 @@ fn ulp_of(m: f32) -> f32 {
     return bitcast<f32>(bitcast<u32>(m) + 1u) - m;
 }
 
+// The smallest ULP used: that of the smallest normal f32, 2^-126 (render::spawn::MIN_ULP).
+const MIN_ULP: f32 = #{MIN_ULP};
+
 fn offset_component(p: f32, o: f32, t: f32, n: f32) -> f32 {
-    let m = max(abs(o) + abs(t), abs(p));
-    if m < 1.0 / 32.0 {
-        return p + (1.0 / 65536.0) * n;
-    }
-    return p + 32.0 * n * ulp_of(m);
+    let m = max(max(abs(o) + abs(t), abs(p)), MIN_ULP);
+    return p + 32.0 * n * max(ulp_of(m), MIN_ULP);
 }
 
 // The origin of a ray leaving the hit point o + t d on the side of the unit normal n.

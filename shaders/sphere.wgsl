@@ -2,7 +2,7 @@
 #define_import_path strahl::sphere
 
 #import strahl::types::{Sphere, PART_SURFACE}
-#import strahl::roots::{Roots, roots_empty, roots_push, stable_quadratic}
+#import strahl::roots::{Roots, roots_empty, roots_push, stable_quadratic, unit_or}
 
 // The stable roots (t_lo, t_hi, valid) of the ray's line with the sphere.
 fn sphere_quadratic(s: Sphere, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
@@ -29,8 +29,9 @@ fn sphere_roots(s: Sphere, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> 
     return roots;
 }
 
+// Facing the ray where the hit point rounds onto the centre (unit_or).
 fn sphere_normal(s: Sphere, o: vec3<f32>, d: vec3<f32>, t: f32) -> vec3<f32> {
-    return normalize((o - s.center) + d * t);
+    return unit_or((o - s.center) + d * t, -d);
 }
 
 // The first root in (tmin, tmax) as (t, part), or t = -1: the same root as

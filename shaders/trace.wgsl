@@ -3,10 +3,13 @@
 // trace_nearest: one QueryHit per ray. Every-hit mode runs two passes: trace_count writes
 // each ray's hit count to `offsets`; the host turns the counts into exclusive offsets; then
 // trace_all writes each ray's hits at its offset and sorts them like primitives::sort_hits.
-#import strahl::types::{QueryRay, QueryHit, QUERY_FOUND, QUERY_ENTER, KIND_PLANE, INDEX_BITS, F32_MAX}
+#import strahl::types::{QueryRay, QueryHit, QUERY_FOUND, QUERY_ENTER, KIND_PLANE, KIND_TRIANGLE, INDEX_BITS, F32_MAX, LINK_SHAPES, LINK_EMPTY}
 #import strahl::spawn::spawn_origin
 #ifdef BVH
-#import strahl::bindings::{nodes, prim_refs}
+#import strahl::bindings::shape_refs
+#ifdef TRIANGLES
+#import strahl::traverse::fetch_leaf_triangle
+#endif
 #endif
 #ifdef SPHERES
 #import strahl::bindings::spheres
@@ -23,14 +26,14 @@
 #import strahl::roots::Roots
 #import strahl::traverse::{nearest_hit, prim_normal, prim_tag, prim_roots, prim_ref}
 #ifdef BVH
-#import strahl::traverse::{slab, safe_inverse, TRAVERSAL_STACK}
+#import strahl::traverse::{safe_inverse, Stack, stack_pop, visit_node, link_is_leaf, leaf_first, leaf_end}
 #endif
 
 @group(1) @binding(0) var<storage, read> rays: array<QueryRay>;
 @group(1) @binding(1) var<storage, read_write> hits: array<QueryHit>;
 @group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
 
-const WORKGROUP: u32 = 64u;
+const WORKGROUP: u32 = #{TRACE_WORKGROUP};
 
 fn make_hit(r: u32, o: vec3<f32>, d: vec3<f32>, t: f32, part: u32) -> QueryHit {
     let n = prim_normal(r, o, d, t, part);
@@ -105,33 +108,27 @@ fn visit_all(q: QueryRay, write: bool, base: u32) -> u32 {
     }
 #endif
 #ifdef BVH
+    // The walk of nearest_hit with a fixed bound: every leaf the ray enters within tmax.
     let inv = safe_inverse(q.dir);
-    var stack: array<u32, TRAVERSAL_STACK>;
-    var sp = 0u;
-    if slab(nodes[0], q.origin, inv, q.tmin, q.tmax) >= 0.0 {
-        stack[0] = 0u;
-        sp = 1u;
-    }
-    while sp > 0u {
-        sp -= 1u;
-        let node = stack[sp];
-        let n = nodes[node];
-        if n.count > 0u {
-            let end = n.left_or_first + n.count;
-            for (var k = n.left_or_first; k < end; k += 1u) {
-                emit_roots(prim_refs[k], q, write, base, &count);
-            }
+    var stack: Stack;
+    var cur = 0u;
+    while cur != LINK_EMPTY {
+        if !link_is_leaf(cur) {
+            cur = visit_node(&stack, cur, q.origin, inv, q.tmin, q.tmax);
         } else {
-            let l = node + 1u;
-            let r = n.left_or_first;
-            if slab(nodes[r], q.origin, inv, q.tmin, q.tmax) >= 0.0 {
-                stack[sp] = r;
-                sp += 1u;
+            let end = leaf_end(cur);
+            if (cur & LINK_SHAPES) != 0u {
+                for (var k = leaf_first(cur); k < end; k += 1u) {
+                    emit_roots(shape_refs[k], q, write, base, &count);
+                }
+            } else {
+#ifdef TRIANGLES
+                for (var k = leaf_first(cur); k < end; k += 1u) {
+                    emit_roots(prim_ref(KIND_TRIANGLE, fetch_leaf_triangle(k).index), q, write, base, &count);
+                }
+#endif
             }
-            if slab(nodes[l], q.origin, inv, q.tmin, q.tmax) >= 0.0 {
-                stack[sp] = l;
-                sp += 1u;
-            }
+            cur = stack_pop(&stack, q.tmax);
         }
     }
 #else

@@ -1,16 +1,26 @@
 // Nearest-hit search over the BVH (or every primitive, for tiny scenes): twin of
-// src/accel/traverse.rs and the tie rule of src/primitives.rs (`Nearest`).
+// src/accel/gpu_bvh.rs (the walk) and the tie rule of src/primitives.rs (`Nearest`).
 //
-// Shader defs: SPHERES, CYLINDERS, TRIANGLES, PLANES (which primitive kinds exist) and
-// BVH (walk the tree; without it every bounded primitive is tested).
+// Shader defs: SPHERES, CYLINDERS, TRIANGLES, PLANES (which primitive kinds exist), BVH (walk
+// the tree; without it every bounded primitive is tested) and LOAD64 (the device reads 64-bit
+// words: nodes and leaf triangles are fetched as such, see fetch_node).
+//
+// What this is shaped for: on a device that runs invocations as the lanes of one SIMD program
+// (lavapipe: 8 lanes on the CPU), a storage-buffer read whose address differs per lane costs
+// a scalar load, a bounds check and an insert per lane and per component, which makes bytes
+// fetched the main cost of a traversal; so a node step fetches both child boxes in one 64-byte
+// node, a leaf's triangles are fetched once, in leaf order, with their material, and a hit
+// keeps what shading needs (normal, material) instead of fetching the triangle again.
 #define_import_path strahl::traverse
 
-#import strahl::types::{INDEX_BITS, INDEX_MASK, KIND_SPHERE, KIND_CYLINDER, KIND_TRIANGLE, KIND_PLANE}
+#import strahl::types::{INDEX_BITS, INDEX_MASK, KIND_SPHERE, KIND_CYLINDER, KIND_TRIANGLE, KIND_PLANE, PART_SURFACE}
 #ifdef BVH
-#import strahl::types::BvhNode
+#import strahl::types::{Node, F32_MAX, LINK_LEAF, LINK_SHAPES, LINK_COUNT_SHIFT, LINK_FIRST_MASK, LINK_EMPTY}
+#import strahl::bindings::{nodes, shape_refs}
+#ifdef TRIANGLES
+#import strahl::types::LeafTriangle
+#import strahl::bindings::leaf_triangles
 #endif
-#ifdef BVH
-#import strahl::bindings::{nodes, prim_refs}
 #endif
 #import strahl::roots::{Roots, roots_empty}
 #ifdef SPHERES
@@ -23,23 +33,33 @@
 #endif
 #ifdef TRIANGLES
 #import strahl::bindings::triangles
-#import strahl::triangle::{triangle_roots, triangle_intersect, shear_new, Shear, triangle_normal}
+#import strahl::triangle::{triangle_roots, triangle_intersect, vertices_intersect, shear_new, Shear, triangle_normal}
 #endif
 #ifdef PLANES
 #import strahl::bindings::planes
 #import strahl::plane::{plane_roots, plane_first}
 #endif
 
-// Deepest BVH the host builds (accel::bvh::MAX_DEPTH) + 1.
-const TRAVERSAL_STACK: u32 = 49u;
+// Entries of the traversal stack: the deepest tree the host collapses (accel::gpu_bvh::MAX_DEPTH).
+const GPU_STACK: u32 = #{GPU_STACK};
 // 1 + 2 gamma(3) in f32, the far-distance growth of the slab test (pbrt-v3 3.9.2).
-const SLAB_GROW: f32 = 1.00000036;
+const SLAB_GROW: f32 = #{SLAB_GROW};
 
 struct Nearest {
     t: f32,
     prim: u32,
     part: u32,
     found: bool,
+    // Set by the BVH walk for a triangle hit: its front normal (v1 - v0) x (v2 - v0), not
+    // normalised, and its material, kept from the leaf triangle when it became the best hit
+    // (hit_normal and hit_material then fetch nothing).
+    kept: bool,
+    normal: vec3<f32>,
+    material: u32,
+}
+
+fn nearest_none(tmax: f32) -> Nearest {
+    return Nearest(tmax, 0xffffffffu, 0u, false, false, vec3<f32>(0.0), 0u);
 }
 
 #ifdef COUNT_VISITS
@@ -186,109 +206,249 @@ fn offer_nearest(best: ptr<function, Nearest>, r: u32, o: vec3<f32>, d: vec3<f32
         (*best).prim = r;
         (*best).part = u32(first.y);
         (*best).found = true;
+        (*best).kept = false;
     }
 }
 
-#ifdef BVH
-// 1/d with zero (and tiny) components replaced by +-1e-30 (see accel::traverse::safe_inverse).
-fn safe_inverse(d: vec3<f32>) -> vec3<f32> {
-    let tiny = 1e-30;
-    let fixed = select(d, select(vec3<f32>(tiny), vec3<f32>(-tiny), d < vec3<f32>(0.0)), abs(d) < vec3<f32>(tiny));
-    return vec3<f32>(1.0) / fixed;
+// Unit front-face normal at the nearest hit of the ray (o, d).
+fn hit_normal(hit: Nearest, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
+    if hit.kept {
+        return normalize(hit.normal);
+    }
+    return prim_normal(hit.prim, o, d, hit.t, hit.part);
 }
 
-// Entry distance of the ray into the node's box within [tmin, tmax], or -1.
-fn slab(n: BvhNode, o: vec3<f32>, inv: vec3<f32>, tmin: f32, tmax: f32) -> f32 {
-    // Per axis as accel::traverse::slab; no operand is NaN (safe_inverse), so min/max
-    // over the axes choose exactly what its comparisons choose.
-    let t0 = (n.bmin - o) * inv;
-    let t1 = (n.bmax - o) * inv;
-    let lo = min(t0, t1);
-    let hi = max(t0, t1) * SLAB_GROW;
-    let tnear = max(tmin, max(lo.x, max(lo.y, lo.z)));
-    let tfar = min(tmax, min(hi.x, min(hi.y, hi.z)));
-    if tnear <= tfar {
+// Material of the nearest hit.
+fn hit_material(hit: Nearest) -> u32 {
+    if hit.kept {
+        return hit.material;
+    }
+    return prim_tag(hit.prim).z;
+}
+
+#ifdef BVH
+// 1/d, with components below 1e-30 in magnitude (the ray runs parallel to that axis) set to 0,
+// which slab() takes apart (see accel::traverse::safe_inverse).
+fn safe_inverse(d: vec3<f32>) -> vec3<f32> {
+    return select(vec3<f32>(1.0) / d, vec3<f32>(0.0), abs(d) < vec3<f32>(1e-30));
+}
+
+// Entry distance of the ray into the box (lo, hi) within [tmin, tmax], or -1 (twin of
+// accel::gpu_bvh::slab, which computes what accel::traverse::slab does). A parallel axis (inv 0)
+// bounds nothing while the origin lies within the box on it and rules the box out otherwise;
+// its lanes of t0 and t1 (0, or NaN from an overflowed gap) are replaced before min/max, so no
+// operand of those is NaN and they choose exactly what the comparisons there choose.
+fn slab(lo: vec3<f32>, hi: vec3<f32>, o: vec3<f32>, inv: vec3<f32>, tmin: f32, tmax: f32) -> f32 {
+    let t0 = (lo - o) * inv;
+    let t1 = (hi - o) * inv;
+    let parallel = inv == vec3<f32>(0.0);
+    let near = select(min(t0, t1), vec3<f32>(-F32_MAX), parallel);
+    let far = select(max(t0, t1) * SLAB_GROW, vec3<f32>(F32_MAX), parallel);
+    let outside = parallel & ((o < lo) | (o > hi));
+    let tnear = max(tmin, max(near.x, max(near.y, near.z)));
+    let tfar = min(tmax, min(far.x, min(far.y, far.z)));
+    if tnear <= tfar && !any(outside) {
         return tnear;
     }
     return -1.0;
 }
+
+#ifdef LOAD64
+// The two 32-bit halves of a 64-bit word (little-endian, as the host wrote the 32-bit fields).
+fn low_u32(v: u64) -> u32 {
+    return u32(v & 0xfffffffflu);
+}
+fn high_u32(v: u64) -> u32 {
+    return u32(v >> 32u);
+}
+// The 16 bytes w as (x, y, z) floats and a u32 in the last word.
+fn vec3_word(w: vec2<u64>) -> vec3<f32> {
+    return vec3<f32>(bitcast<f32>(low_u32(w.x)), bitcast<f32>(high_u32(w.x)), bitcast<f32>(low_u32(w.y)));
+}
 #endif
 
-// The nearest hit in (tmin, tmax): identical choice to accel::traverse::nearest.
+// Inner node i. With LOAD64 as four 16-byte reads of two 64-bit words each, which a SIMD
+// device with per-lane reads (lavapipe) serves with half the loads and bounds checks of
+// 32-bit words.
+fn fetch_node(i: u32) -> Node {
+#ifdef LOAD64
+    let a = nodes[4u * i];
+    let b = nodes[4u * i + 1u];
+    let c = nodes[4u * i + 2u];
+    let e = nodes[4u * i + 3u];
+    return Node(vec3_word(a), high_u32(a.y), vec3_word(b), high_u32(b.y), vec3_word(c), 0u, vec3_word(e), 0u);
+#else
+    return nodes[i];
+#endif
+}
+
+#ifdef TRIANGLES
+// Triangle k of the leaf order (see fetch_node for LOAD64).
+fn fetch_leaf_triangle(k: u32) -> LeafTriangle {
+#ifdef LOAD64
+    let a = leaf_triangles[3u * k];
+    let b = leaf_triangles[3u * k + 1u];
+    let c = leaf_triangles[3u * k + 2u];
+    return LeafTriangle(vec3_word(a), high_u32(a.y), vec3_word(b), high_u32(b.y), vec3_word(c), 0u);
+#else
+    return leaf_triangles[k];
+#endif
+}
+#endif
+
+// The traversal stack: child links and the distances at which the ray enters their boxes.
+struct Stack {
+    entries: array<vec2<u32>, GPU_STACK>,
+    size: u32,
+}
+
+fn stack_push(s: ptr<function, Stack>, link: u32, t: f32) {
+    (*s).entries[(*s).size] = vec2<u32>(link, bitcast<u32>(t));
+    (*s).size += 1u;
+}
+
+// The most recently pushed link whose box the ray enters within bound (entries beyond bound
+// are dropped), or LINK_EMPTY when none is left.
+fn stack_pop(s: ptr<function, Stack>, bound: f32) -> u32 {
+    while (*s).size > 0u {
+        (*s).size -= 1u;
+        let e = (*s).entries[(*s).size];
+        if bitcast<f32>(e.y) <= bound {
+            return e.x;
+        }
+    }
+    return LINK_EMPTY;
+}
+
+// One step from inner node `node`: the nearer child whose box the ray enters within
+// [tmin, tb] (the farther one pushed), else the next link on the stack.
+fn visit_node(s: ptr<function, Stack>, node: u32, o: vec3<f32>, inv: vec3<f32>, tmin: f32, tb: f32) -> u32 {
+#ifdef COUNT_VISITS
+    visited_nodes += 1u;
+#endif
+    let n = fetch_node(node);
+    let ha = slab(n.lo_a, n.hi_a, o, inv, tmin, tb);
+    // Only a root that is a leaf has an absent child (b).
+    let hb = select(-1.0, slab(n.lo_b, n.hi_b, o, inv, tmin, tb), n.link_b != LINK_EMPTY);
+    if ha >= 0.0 && hb >= 0.0 {
+        if hb < ha {
+            stack_push(s, n.link_a, ha);
+            return n.link_b;
+        }
+        stack_push(s, n.link_b, hb);
+        return n.link_a;
+    }
+    if ha >= 0.0 {
+        return n.link_a;
+    }
+    if hb >= 0.0 {
+        return n.link_b;
+    }
+    return stack_pop(s, tb);
+}
+
+fn link_is_leaf(link: u32) -> bool {
+    return (link & LINK_LEAF) != 0u;
+}
+
+fn leaf_first(link: u32) -> u32 {
+    return link & LINK_FIRST_MASK;
+}
+
+fn leaf_end(link: u32) -> u32 {
+    return (link & LINK_FIRST_MASK) + ((link & ~(LINK_LEAF | LINK_SHAPES)) >> LINK_COUNT_SHIFT) + 1u;
+}
+
+#ifdef TRIANGLES
+// Offers triangles first .. end of the leaf order to best (the leaf loop of nearest_hit).
+fn offer_triangles(best: ptr<function, Nearest>, first: u32, end: u32, o: vec3<f32>, sh: Shear, tmin: f32) {
+    for (var k = first; k < end; k += 1u) {
+#ifdef COUNT_VISITS
+        tested_prims += 1u;
+#endif
+        let tri = fetch_leaf_triangle(k);
+        let r = prim_ref(KIND_TRIANGLE, tri.index);
+        let t = vertices_intersect(tri.va, tri.vb, tri.vc, o, sh, tmin, search_bound(*best));
+        if t >= 0.0 && (t < (*best).t || (t == (*best).t && r < (*best).prim)) {
+            (*best).t = t;
+            (*best).prim = r;
+            (*best).part = PART_SURFACE;
+            (*best).found = true;
+            (*best).kept = true;
+            (*best).normal = cross(tri.vb - tri.va, tri.vc - tri.va);
+            (*best).material = tri.material;
+        }
+    }
+}
+#endif
+#endif
+
+// The nearest hit in (tmin, tmax): identical choice to accel::traverse::nearest (and to
+// accel::gpu_bvh::nearest, whose walk this is).
 fn nearest_hit(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Nearest {
-    var best = Nearest(tmax, 0xffffffffu, 0u, false);
+    return walk(o, d, tmin, tmax, false);
+}
+
+// Whether anything lies in (tmin, tmax) along the ray: the walk of nearest_hit, ended at the
+// first hit it meets (accel::gpu_bvh::occluded), for shadow rays.
+fn occluded(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> bool {
+    return walk(o, d, tmin, tmax, true).found;
+}
+
+// The nearest hit in (tmin, tmax) or, with any_hit, some hit (each caller passes a constant,
+// and the driver's inlining leaves a walk specialised to it).
+fn walk(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32, any_hit: bool) -> Nearest {
+    var best = nearest_none(tmax);
 #ifdef PLANES
     let np = arrayLength(&planes);
-    for (var i = 0u; i < np; i += 1u) {
+    for (var i = 0u; i < np && !(any_hit && best.found); i += 1u) {
         offer_nearest(&best, prim_ref(KIND_PLANE, i), o, d, tmin);
     }
 #endif
 #ifdef BVH
     let inv = safe_inverse(d);
-    var stack_node: array<u32, TRAVERSAL_STACK>;
-    var stack_t: array<f32, TRAVERSAL_STACK>;
-    var sp = 0u;
-    var node = 0u;
-    var walking = slab(nodes[0], o, inv, tmin, search_bound(best)) >= 0.0;
-    while walking {
-        let n = nodes[node];
-#ifdef COUNT_VISITS
-        visited_nodes += 1u;
+#ifdef TRIANGLES
+    let sh = shear_new(d);
 #endif
-        var next = 0xffffffffu;
-        if n.count > 0u {
-            let end = n.left_or_first + n.count;
-            for (var k = n.left_or_first; k < end; k += 1u) {
-                offer_nearest(&best, prim_refs[k], o, d, tmin);
-            }
+    var stack: Stack;
+    var cur = 0u;
+    if any_hit && best.found {
+        cur = LINK_EMPTY;
+    }
+    // One loop whose iterations take one node step or one leaf: SIMD lanes at leaves and
+    // lanes at inner nodes advance together (measured on lavapipe: cheaper than separate
+    // loops for node steps and leaves, which make lanes wait for each other).
+    while cur != LINK_EMPTY {
+        if !link_is_leaf(cur) {
+            cur = visit_node(&stack, cur, o, inv, tmin, search_bound(best));
         } else {
-            let l = node + 1u;
-            let r = n.left_or_first;
-            let tb = search_bound(best);
-            let hl = slab(nodes[l], o, inv, tmin, tb);
-            let hr = slab(nodes[r], o, inv, tmin, tb);
-            if hl >= 0.0 && hr >= 0.0 {
-                if hr < hl {
-                    stack_node[sp] = l;
-                    stack_t[sp] = hl;
-                    next = r;
-                } else {
-                    stack_node[sp] = r;
-                    stack_t[sp] = hr;
-                    next = l;
+            let first = leaf_first(cur);
+            let end = leaf_end(cur);
+            if (cur & LINK_SHAPES) != 0u {
+                for (var k = first; k < end; k += 1u) {
+                    offer_nearest(&best, shape_refs[k], o, d, tmin);
                 }
-                sp += 1u;
-            } else if hl >= 0.0 {
-                next = l;
-            } else if hr >= 0.0 {
-                next = r;
+            } else {
+#ifdef TRIANGLES
+                offer_triangles(&best, first, end, o, sh, tmin);
+#endif
             }
+            cur = select(stack_pop(&stack, search_bound(best)), LINK_EMPTY, any_hit && best.found);
         }
-        while next == 0xffffffffu {
-            if sp == 0u {
-                walking = false;
-                break;
-            }
-            sp -= 1u;
-            if stack_t[sp] <= search_bound(best) {
-                next = stack_node[sp];
-            }
-        }
-        node = next;
     }
 #else
 #ifdef SPHERES
-    for (var i = 0u; i < arrayLength(&spheres); i += 1u) {
+    for (var i = 0u; i < arrayLength(&spheres) && !(any_hit && best.found); i += 1u) {
         offer_nearest(&best, prim_ref(KIND_SPHERE, i), o, d, tmin);
     }
 #endif
 #ifdef CYLINDERS
-    for (var i = 0u; i < arrayLength(&cylinders); i += 1u) {
+    for (var i = 0u; i < arrayLength(&cylinders) && !(any_hit && best.found); i += 1u) {
         offer_nearest(&best, prim_ref(KIND_CYLINDER, i), o, d, tmin);
     }
 #endif
 #ifdef TRIANGLES
-    for (var i = 0u; i < arrayLength(&triangles); i += 1u) {
+    for (var i = 0u; i < arrayLength(&triangles) && !(any_hit && best.found); i += 1u) {
         offer_nearest(&best, prim_ref(KIND_TRIANGLE, i), o, d, tmin);
     }
 #endif

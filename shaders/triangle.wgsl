@@ -1,5 +1,6 @@
 // Watertight ray/triangle (Woop, Benthin & Wald, JCGT 2013): twin of
-// src/geometry/triangle.rs (see there for why shared edges never leak).
+// src/geometry/triangle.rs (see there for why shared edges never leak, and for the tie rule
+// that gives a point on a shared edge to one triangle).
 #define_import_path strahl::triangle
 
 #import strahl::types::{Triangle, PART_SURFACE}
@@ -42,11 +43,22 @@ fn difference_of_products(a: f32, b: f32, c: f32, d: f32) -> f32 {
     return dop + err;
 }
 
+// The sign an edge function of exactly 0 counts with (geometry::triangle::edge_tie): the sheared
+// edge vector's y, or -x where y is 0.
+fn edge_tie(e: f32, ex: f32, ey: f32) -> f32 {
+    return select(e, select(-ex, ey, ey != 0.0), e == 0.0);
+}
+
 // Hit distance in (tmin, tmax), or -1 when missed.
 fn triangle_intersect(tri: Triangle, o: vec3<f32>, sh: Shear, tmin: f32, tmax: f32) -> f32 {
-    let a = tri.va - o;
-    let b = tri.vb - o;
-    let c = tri.vc - o;
+    return vertices_intersect(tri.va, tri.vb, tri.vc, o, sh, tmin, tmax);
+}
+
+// The same for the triangle (va, vb, vc).
+fn vertices_intersect(va: vec3<f32>, vb: vec3<f32>, vc: vec3<f32>, o: vec3<f32>, sh: Shear, tmin: f32, tmax: f32) -> f32 {
+    let a = va - o;
+    let b = vb - o;
+    let c = vc - o;
     let kx = sh.k.x;
     let ky = sh.k.y;
     let kz = sh.k.z;
@@ -56,13 +68,16 @@ fn triangle_intersect(tri: Triangle, o: vec3<f32>, sh: Shear, tmin: f32, tmax: f
     let by = b[ky] - sh.s.y * b[kz];
     let cx = c[kx] - sh.s.x * c[kz];
     let cy = c[ky] - sh.s.y * c[kz];
-    // Edge functions with the exact sign whatever the compiler fuses (see difference_of_products):
-    // a shared edge gives opposite signs in its two triangles, so no ray slips between them. A
-    // point exactly on an edge (0) is inside both: a double hit, never a gap.
+    // Edge functions antisymmetric whatever the compiler fuses (see difference_of_products): a
+    // shared edge gives opposite signs in its two triangles, so no ray slips between them. A
+    // point exactly on an edge (0) goes to one triangle by the tie rule.
     let u = difference_of_products(cx, by, cy, bx);
     let v = difference_of_products(ax, cy, ay, cx);
     let w = difference_of_products(bx, ay, by, ax);
-    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+    let su = edge_tie(u, cx - bx, cy - by);
+    let sv = edge_tie(v, ax - cx, ay - cy);
+    let sw = edge_tie(w, bx - ax, by - ay);
+    if (su < 0.0 || sv < 0.0 || sw < 0.0) && (su > 0.0 || sv > 0.0 || sw > 0.0) {
         return -1.0;
     }
     let det = u + v + w;

@@ -10,7 +10,7 @@
 #import strahl::types::{FRAME_ACCUMULATE, F32_MAX}
 #import strahl::bindings::frame
 #import strahl::raygen::{primary_ray, tile_pixel, output_index}
-#import strahl::traverse::{nearest_hit, prim_normal, visited_nodes, tested_prims}
+#import strahl::traverse::{nearest_hit, hit_normal, visited_nodes, tested_prims}
 
 @group(1) @binding(0) var<storage, read_write> output: array<vec4<f32>>;
 
@@ -19,7 +19,7 @@ const VIEW_NORMALS: u32 = 1u;
 const VIEW_DEPTH: u32 = 2u;
 const VIEW_COST: u32 = 3u;
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(#{TILE_WORKGROUP}, #{TILE_WORKGROUP}, 1)
 fn view(@builtin(global_invocation_id) gid: vec3<u32>) {
     let px = tile_pixel(frame, gid);
     if px.z == 0u {
@@ -35,7 +35,7 @@ fn view(@builtin(global_invocation_id) gid: vec3<u32>) {
         v = vec4<f32>(f32(visited_nodes), f32(tested_prims), 0.0, 1.0);
     } else if hit.found {
         if mode == VIEW_NORMALS {
-            v = vec4<f32>(prim_normal(hit.prim, ray.origin, ray.dir, hit.t, hit.part), 1.0);
+            v = vec4<f32>(hit_normal(hit, ray.origin, ray.dir), 1.0);
         } else if mode == VIEW_DEPTH {
             v = vec4<f32>(hit.t, 0.0, 0.0, 1.0);
         }

@@ -122,12 +122,13 @@ pub fn doubling_checkpoints(max_spp: u32) -> Vec<u32> {
 }
 
 /// Renders with `p` from zero samples on `schedule`, compares the mean with `reference` at
-/// every checkpoint and calls `on_row` with each row as soon as it is measured.
+/// every checkpoint and calls `on_row` with each row as soon as it is measured (an error from
+/// it stops the run).
 pub fn measure(
     p: &mut dyn Progressive,
     reference: &Image,
     schedule: &Schedule,
-    on_row: &mut dyn FnMut(&Row),
+    on_row: &mut dyn FnMut(&Row) -> Result<()>,
 ) -> Result<Vec<Row>> {
     ensure!(p.samples() == 0, "the {} renderer already holds {} samples per pixel", p.backend(), p.samples());
     let mut rows = Vec::new();
@@ -165,7 +166,7 @@ fn step(
     n: u32,
     seconds: &mut f64,
     reference: &Image,
-    on_row: &mut dyn FnMut(&Row),
+    on_row: &mut dyn FnMut(&Row) -> Result<()>,
 ) -> Result<Row> {
     let backend = p.backend();
     let before = p.samples();
@@ -189,7 +190,7 @@ fn step(
         seconds: *seconds,
         errors,
     };
-    on_row(&row);
+    on_row(&row)?;
     Ok(row)
 }
 
@@ -206,7 +207,8 @@ fn fixed_time_batch(spp: u32, seconds: f64, budget: f64, max_spp: u32) -> u32 {
     n as u32
 }
 
-/// Writes `rows` as CSV: `backend,label,spp,seconds,rmse,rmse_clamped,rel_mse,mean_flip`.
+/// Writes `rows` as CSV: `backend,label,spp,seconds,rmse,rmse_clamped,rel_mse,mean_flip`,
+/// atomically (a run rewrites it after every row, so an interrupted run keeps what it measured).
 pub fn write_csv(rows: &[Row], path: &Path) -> Result<()> {
     let mut s = String::from("backend,label,spp,seconds,rmse,rmse_clamped,rel_mse,mean_flip\n");
     for r in rows {
@@ -225,7 +227,7 @@ pub fn write_csv(rows: &[Row], path: &Path) -> Result<()> {
         )
         .expect("writing to a String");
     }
-    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
+    crate::output::write_bytes_atomic(path, s.as_bytes())
 }
 
 /// A CSV field, quoted (RFC 4180) when it holds a comma, a quote or a line break.
@@ -348,10 +350,8 @@ pub fn plot(rows: &[Row], title: &str, path: &Path) -> Result<()> {
             .map_err(plot_error)?;
         root.present().map_err(plot_error)?;
     }
-    image::RgbImage::from_raw(w, h, buf)
-        .context("plot buffer size mismatch")?
-        .save(path)
-        .with_context(|| format!("cannot write {}", path.display()))
+    let img = image::RgbImage::from_raw(w, h, buf).context("plot buffer size mismatch")?;
+    crate::image::save_encoded(&img, image::ImageFormat::Png, path)
 }
 
 const SERIES_COLORS: [plotters::style::RGBColor; 6] = [
@@ -579,7 +579,11 @@ mod tests {
         for (max_spp, expected) in [(8, vec![1, 2, 4, 8]), (12, vec![1, 2, 4, 8, 12])] {
             let mut p = Noisy::new(&reference, Duration::ZERO);
             let mut seen = Vec::new();
-            let rows = measure(&mut p, &reference, &Schedule::Doubling { max_spp }, &mut |r| seen.push(r.spp)).unwrap();
+            let rows = measure(&mut p, &reference, &Schedule::Doubling { max_spp }, &mut |r| {
+                seen.push(r.spp);
+                Ok(())
+            })
+            .unwrap();
             assert_eq!(rows.iter().map(|r| r.spp).collect::<Vec<_>>(), expected);
             assert_eq!(seen, expected);
             assert_eq!(p.samples(), max_spp);
@@ -592,7 +596,7 @@ mod tests {
     fn doubling_error_falls_as_one_over_sqrt_spp() {
         let reference = gradient(32, 32);
         let mut p = Noisy::new(&reference, Duration::ZERO);
-        let rows = measure(&mut p, &reference, &Schedule::Doubling { max_spp: 64 }, &mut |_| {}).unwrap();
+        let rows = measure(&mut p, &reference, &Schedule::Doubling { max_spp: 64 }, &mut |_| Ok(())).unwrap();
         assert_eq!(rows.len(), 7);
         // Uniform noise of half-width 0.3 has σ = 0.3/√3; 3072 channels estimate it within a few %.
         let sigma = 0.3 / 3f64.sqrt();
@@ -614,7 +618,7 @@ mod tests {
         let budget = 0.05;
         let mut p = Noisy::new(&reference, Duration::from_millis(1));
         let schedule = Schedule::FixedTime { seconds: budget, max_spp: 1_000_000 };
-        let rows = measure(&mut p, &reference, &schedule, &mut |_| {}).unwrap();
+        let rows = measure(&mut p, &reference, &schedule, &mut |_| Ok(())).unwrap();
         let last = rows.last().unwrap();
         assert!(last.spp >= 1 && last.spp == p.samples());
         assert!(last.seconds <= budget * 3.0, "{} s for a {budget} s budget", last.seconds);
@@ -629,7 +633,7 @@ mod tests {
         let reference = gradient(4, 4);
         let mut p = Noisy::new(&reference, Duration::ZERO);
         let schedule = Schedule::FixedTime { seconds: 1000.0, max_spp: 10 };
-        let rows = measure(&mut p, &reference, &schedule, &mut |_| {}).unwrap();
+        let rows = measure(&mut p, &reference, &schedule, &mut |_| Ok(())).unwrap();
         assert_eq!(rows.iter().map(|r| r.spp).collect::<Vec<_>>(), [1, 2, 4, 8, 10]);
     }
 
@@ -665,7 +669,7 @@ mod tests {
         }
         let reference = gradient(4, 4);
         let mut p = Lazy(Noisy::new(&reference, Duration::ZERO));
-        let msg = measure(&mut p, &reference, &Schedule::Doubling { max_spp: 4 }, &mut |_| {}).unwrap_err();
+        let msg = measure(&mut p, &reference, &Schedule::Doubling { max_spp: 4 }, &mut |_| Ok(())).unwrap_err();
         assert!(msg.to_string().contains("holds 3 samples per pixel after adding 2 to 2, expected 4"), "{msg}");
     }
 

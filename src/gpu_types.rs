@@ -6,7 +6,8 @@
 //! WGSL's `vec3<f32>` is 16-byte aligned with size 12: every `[f32; 3]` here is followed by a
 //! 4-byte field that fills the rest of its 16 bytes.
 
-use crate::accel::{Bvh, BvhNode};
+use crate::accel::Bvh;
+use crate::accel::gpu_bvh::{GpuBvh, GpuLeafTriangle, GpuNode};
 use crate::primitives::{Primitives, Tagged};
 use crate::scene::{Light, Scene};
 use bytemuck::{Pod, Zeroable};
@@ -94,25 +95,25 @@ pub struct GpuLight {
 /// area lights); path mode samples the object itself and skips it.
 pub const LIGHT_STAND_IN: u32 = 1;
 
-/// Emitter kind: an emissive triangle or sphere, `prim` its [`crate::primitives::PrimRef`].
+/// Emitter kind: an emissive triangle or sphere, `prim` its [`crate::primitives::PrimRef`]
+/// (the only kind: point and directional lights are evaluated at every vertex, not chosen).
 pub const EMITTER_AREA: u32 = 0;
-/// Emitter kind: a point or directional light, `prim` its index in the lights buffer.
-pub const EMITTER_LIGHT: u32 = 1;
 
-/// One light source path mode samples for next-event estimation, chosen with probability
-/// `pdf` (proportional to its power) by inverting the cumulative `cdf`.
+/// One area light path mode samples for next-event estimation, chosen with probability `pdf`
+/// (proportional to its power) by inverting the cumulative `cdf`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuEmitter {
     pub prim: u32,
-    /// [`EMITTER_AREA`] or [`EMITTER_LIGHT`].
+    /// [`EMITTER_AREA`].
     pub kind: u32,
     /// Σ pdf of this emitter and those before it (the last is 1).
     pub cdf: f32,
     pub pdf: f32,
 }
 
-/// Per-dispatch uniforms: the camera frame, image and tile, and render settings.
+/// Per-dispatch parameters: the camera frame, image and tile, and render settings (bound as a
+/// read-only storage buffer, see `shaders/bindings.wgsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuFrame {
@@ -164,11 +165,16 @@ pub struct GpuScene {
     pub cylinders: Vec<GpuCylinder>,
     pub planes: Vec<GpuPlane>,
     pub triangles: Vec<GpuTriangle>,
-    pub nodes: Vec<BvhNode>,
-    pub prim_refs: Vec<u32>,
+    /// The BVH as the GPU walks it ([`crate::accel::gpu_bvh`]); empty without bounded
+    /// primitives, or with more than [`crate::accel::gpu_bvh::MAX_PRIMS`] of them (which no GPU buffer holds).
+    pub nodes: Vec<GpuNode>,
+    /// Sphere and cylinder references in leaf order.
+    pub shape_refs: Vec<u32>,
+    /// Triangles in leaf order.
+    pub leaf_triangles: Vec<GpuLeafTriangle>,
     pub materials: Vec<GpuMaterial>,
     pub lights: Vec<GpuLight>,
-    /// Path mode's light sources: emissive triangles and spheres, point and directional lights.
+    /// Path mode's sampled light sources: emissive triangles and spheres.
     pub emitters: Vec<GpuEmitter>,
     /// 1 / Σ emitter weights ([`GpuFrame::emitter_norm`]); 0 without emitters.
     pub emitter_norm: f32,
@@ -179,6 +185,11 @@ fn rgb(v: [f64; 3]) -> [f32; 3] {
 }
 
 impl GpuScene {
+    /// Spheres, cylinders and triangles: the primitives the BVH holds.
+    pub fn bounded_count(&self) -> usize {
+        self.spheres.len() + self.cylinders.len() + self.triangles.len()
+    }
+
     pub fn new(scene: &Scene, prims: &Primitives<f32>, bvh: &Bvh) -> Self {
         let tag = |t: &crate::primitives::Tag| (t.object, t.prim, t.material);
         let mut g = Self {
@@ -229,8 +240,9 @@ impl GpuScene {
                     material: t.material,
                 })
                 .collect(),
-            nodes: bvh.nodes.clone(),
-            prim_refs: bvh.prim_refs.iter().map(|r| r.0).collect(),
+            nodes: Vec::new(),
+            shape_refs: Vec::new(),
+            leaf_triangles: Vec::new(),
             materials: scene
                 .materials
                 .iter()
@@ -265,8 +277,11 @@ impl GpuScene {
             emitters: Vec::new(),
             emitter_norm: 0.0,
         };
+        if let Ok(tree) = GpuBvh::collapse(bvh, prims) {
+            (g.nodes, g.shape_refs, g.leaf_triangles) = (tree.nodes, tree.shape_refs, tree.triangles);
+        }
         g.lights.extend(crate::render::emitters::stand_in_lights(scene));
-        let (emitters, norm) = crate::render::emitters::build_emitters(&g, bvh);
+        let (emitters, norm) = crate::render::emitters::build_emitters(&g);
         g.emitters = emitters;
         g.emitter_norm = norm;
         g

@@ -44,20 +44,20 @@ impl Image {
         self.pixels.iter().filter(|p| p.iter().any(|c| !c.is_finite())).count()
     }
 
-    /// Writes a PNG (`.png`) or EXR (`.exr`) file.
+    /// Writes a PNG (`.png`) or EXR (`.exr`) file, atomically ([`crate::output::write_atomic`]).
     pub fn save(&self, path: &Path) -> Result<()> {
         let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         match ext.as_deref() {
-            Some("png") => image::RgbImage::from_raw(self.width, self.height, self.to_srgb8())
-                .context("image buffer size mismatch")?
-                .save(path)
-                .with_context(|| format!("cannot write {}", path.display())),
+            Some("png") => {
+                let img = image::RgbImage::from_raw(self.width, self.height, self.to_srgb8())
+                    .context("image buffer size mismatch")?;
+                save_encoded(&img, image::ImageFormat::Png, path)
+            }
             Some("exr") => {
                 let data: Vec<f32> = self.pixels.iter().flatten().copied().collect();
-                image::Rgb32FImage::from_raw(self.width, self.height, data)
-                    .context("image buffer size mismatch")?
-                    .save(path)
-                    .with_context(|| format!("cannot write {}", path.display()))
+                let img = image::Rgb32FImage::from_raw(self.width, self.height, data)
+                    .context("image buffer size mismatch")?;
+                save_encoded(&img, image::ImageFormat::OpenExr, path)
             }
             _ => bail!("{}: unknown image format; use a .png or .exr file name", path.display()),
         }
@@ -72,6 +72,16 @@ impl Image {
         let pixels = rgb.pixels().map(|p| if is_exr { p.0 } else { p.0.map(srgb_to_linear) }).collect();
         Ok(Image { width, height, pixels })
     }
+}
+
+/// Encodes `img` as `format` into `path`, atomically.
+pub fn save_encoded<P, C>(img: &image::ImageBuffer<P, C>, format: image::ImageFormat, path: &Path) -> Result<()>
+where
+    P: image::PixelWithColorType,
+    [P::Subpixel]: image::EncodableLayout,
+    C: std::ops::Deref<Target = [P::Subpixel]>,
+{
+    crate::output::write_atomic(path, |w| Ok(img.write_to(w, format)?))
 }
 
 fn srgb_to_linear(v: f32) -> f32 {

@@ -10,11 +10,14 @@
 pub mod accel;
 pub mod backend;
 pub mod converge;
+pub mod errors;
 pub mod geometry;
 pub mod gpu_types;
 pub mod image;
+pub mod input;
 pub mod math;
 pub mod metrics;
+pub mod output;
 pub mod primitives;
 pub mod query;
 pub mod raysets;

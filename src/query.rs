@@ -8,6 +8,7 @@
 use crate::math::{Ray, Real, V3};
 use crate::primitives::Hit;
 use std::fmt::Write as _;
+use std::io::{BufRead, Read};
 use std::path::Path;
 
 pub const HITS_HEADER: &str = "ray,t,x,y,z,nx,ny,nz,object,prim,enter";
@@ -37,11 +38,20 @@ pub struct RaysError {
     pub message: String,
 }
 
-/// Reads a rays CSV file (size-checked before reading).
+/// Longest line accepted in a rays file (eight numbers take at most about 200 bytes).
+pub const MAX_RAYS_LINE_BYTES: usize = 4096;
+
+/// Reads a rays CSV file: a regular file over [`MAX_RAYS_FILE_BYTES`] is refused before it
+/// is read; any file is read a line at a time, so a stream without line breaks (/dev/zero)
+/// fails at its first [`MAX_RAYS_LINE_BYTES`] bytes.
 pub fn read_rays(path: &Path) -> anyhow::Result<Vec<RayQuery>> {
-    let meta =
-        std::fs::metadata(path).map_err(|e| anyhow::anyhow!("{}: cannot read rays file: {e}", path.display()))?;
-    if meta.len() > MAX_RAYS_FILE_BYTES {
+    let cannot = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: cannot read rays file: {e}", path.display());
+    let file = std::fs::File::open(path).map_err(|e| cannot(&e))?;
+    let meta = file.metadata().map_err(|e| cannot(&e))?;
+    if meta.is_dir() {
+        return Err(cannot(&"is a folder"));
+    }
+    if meta.is_file() && meta.len() > MAX_RAYS_FILE_BYTES {
         anyhow::bail!(
             "{}: rays file is {} bytes; at most {} are accepted",
             path.display(),
@@ -49,17 +59,67 @@ pub fn read_rays(path: &Path) -> anyhow::Result<Vec<RayQuery>> {
             MAX_RAYS_FILE_BYTES
         );
     }
-    let text =
-        std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("{}: cannot read rays file: {e}", path.display()))?;
-    Ok(parse_rays(&text, &path.display().to_string())?)
+    let reader = std::io::BufReader::new(file);
+    Ok(parse_rays_from(reader, &path.display().to_string(), MAX_RAYS_FILE_BYTES)?)
 }
 
 /// Parses rays CSV text; `file` names it in errors.
 pub fn parse_rays(text: &str, file: &str) -> Result<Vec<RayQuery>, RaysError> {
+    parse_rays_from(text.as_bytes(), file, u64::MAX)
+}
+
+/// The next line of `reader` (without its line break), or None at the end; `line` is its
+/// number for errors. Lines are at most [`MAX_RAYS_LINE_BYTES`] long and hold no NUL byte.
+fn next_line(reader: &mut impl BufRead, buf: &mut Vec<u8>, line: usize) -> Result<Option<String>, String> {
+    buf.clear();
+    let n = reader
+        .by_ref()
+        .take(MAX_RAYS_LINE_BYTES as u64 + 1)
+        .read_until(b'\n', buf)
+        .map_err(|e| format!("cannot read rays file: {e}"))?;
+    if n == 0 {
+        return Ok(None);
+    }
+    if buf.contains(&0) {
+        return Err("not a text file (a NUL byte)".into());
+    }
+    if buf.last() == Some(&b'\n') {
+        buf.pop();
+    } else if buf.len() > MAX_RAYS_LINE_BYTES {
+        return Err(format!("line longer than {MAX_RAYS_LINE_BYTES} bytes"));
+    }
+    let mut text = String::from_utf8(std::mem::take(buf)).map_err(|_| "not valid UTF-8".to_string())?;
+    if line == 1 && text.starts_with('\u{feff}') {
+        // A byte-order mark, as some spreadsheet programs write.
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(Some(text))
+}
+
+/// Parses rays CSV from `reader`, at most `limit` bytes; `file` names it in errors.
+pub fn parse_rays_from(mut reader: impl BufRead, file: &str, limit: u64) -> Result<Vec<RayQuery>, RaysError> {
     let err = |line: usize, message: String| RaysError { file: file.to_string(), line, message };
-    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim())).filter(|(_, l)| !l.is_empty());
-    let (hline, header) =
-        lines.next().ok_or_else(|| err(1, "empty file: expected the header ox,oy,oz,dx,dy,dz[,tmin,tmax]".into()))?;
+    let mut buf = Vec::new();
+    let mut bytes = 0u64;
+    let mut ln = 0usize;
+    let mut next = |reader: &mut dyn BufRead| -> Result<Option<(usize, String)>, RaysError> {
+        loop {
+            ln += 1;
+            let Some(text) = next_line(&mut &mut *reader, &mut buf, ln).map_err(|m| err(ln, m))? else {
+                return Ok(None);
+            };
+            bytes += text.len() as u64 + 1;
+            if bytes > limit {
+                return Err(err(ln, format!("the rays file is larger than {limit} bytes, the most accepted")));
+            }
+            let t = text.trim();
+            if !t.is_empty() {
+                return Ok(Some((ln, t.to_string())));
+            }
+        }
+    };
+    let (hline, header) = next(&mut reader)?
+        .ok_or_else(|| err(1, "empty file: expected the header ox,oy,oz,dx,dy,dz[,tmin,tmax]".into()))?;
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
     const KNOWN: [&str; 8] = ["ox", "oy", "oz", "dx", "dy", "dz", "tmin", "tmax"];
     let mut col = [usize::MAX; 8];
@@ -79,7 +139,7 @@ pub fn parse_rays(text: &str, file: &str) -> Result<Vec<RayQuery>, RaysError> {
         return Err(err(hline, format!("missing column \"{}\"", KNOWN[k])));
     }
     let mut rays = Vec::new();
-    for (ln, line) in lines {
+    while let Some((ln, line)) = next(&mut reader)? {
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         if fields.len() != names.len() {
             return Err(err(ln, format!("{} fields, the header has {}", fields.len(), names.len())));
@@ -100,17 +160,26 @@ pub fn parse_rays(text: &str, file: &str) -> Result<Vec<RayQuery>, RaysError> {
             v[k] = x;
         }
         let origin = V3::new(v[0], v[1], v[2]);
-        let d = V3::new(v[3], v[4], v[5]);
-        let len = d.length();
-        if !(len > 0.0) || !len.is_finite() {
-            return Err(err(ln, "dx,dy,dz: the direction must be non-zero".into()));
-        }
+        let dir = unit_direction(V3::new(v[3], v[4], v[5]))
+            .ok_or_else(|| err(ln, "dx,dy,dz: the direction must be non-zero".into()))?;
         if !(v[6] >= 0.0) || !(v[7] > v[6]) {
             return Err(err(ln, format!("tmin,tmax: need 0 <= tmin < tmax, got {} and {}", v[6], v[7])));
         }
-        rays.push(RayQuery { origin, dir: d / len, tmin: v[6], tmax: v[7] });
+        rays.push(RayQuery { origin, dir, tmin: v[6], tmax: v[7] });
     }
     Ok(rays)
+}
+
+/// `d` scaled to unit length, or None for the zero vector. The components are first divided by
+/// the largest magnitude among them (exact for powers of two; otherwise one rounding), so the
+/// squared length neither overflows (1e308) nor underflows (1e-300) before the square root.
+pub fn unit_direction(d: V3<f64>) -> Option<V3<f64>> {
+    let m = d.abs().max_component();
+    if !(m > 0.0) || !m.is_finite() {
+        return None;
+    }
+    let s = d / m;
+    Some(s / s.length())
 }
 
 /// Appends the CSV rows for ray `index`: its hits, or one miss row when `hits` is empty and
@@ -140,6 +209,20 @@ mod tests {
         assert_eq!(r[0].origin, V3::new(3.0, 2.0, 1.0));
         assert_eq!(r[0].dir, V3::new(0.0, 0.0, 1.0));
         assert_eq!((r[0].tmin, r[0].tmax), (0.0, 5.0));
+    }
+
+    /// Huge and tiny (finite, non-zero) directions are scaled before they are normalised: their
+    /// squared length overflowed to infinity or underflowed to zero, and they were refused.
+    #[test]
+    fn extreme_directions_are_normalised() {
+        let r =
+            parse_rays("ox,oy,oz,dx,dy,dz\n0,0,0,1e308,1e308,1e308\n0,0,0,0,0,1e-300\n0,0,0,-5e-324,0,0\n", "r.csv")
+                .unwrap();
+        let third = 1.0 / 3f64.sqrt();
+        assert!((r[0].dir - V3::splat(third)).abs().max_component() < 1e-15, "{:?}", r[0].dir);
+        assert_eq!(r[1].dir, V3::new(0.0, 0.0, 1.0));
+        assert_eq!(r[2].dir, V3::new(-1.0, 0.0, 0.0));
+        assert!(parse_rays("ox,oy,oz,dx,dy,dz\n0,0,0,0,-0,0\n", "r.csv").is_err());
     }
 
     #[test]

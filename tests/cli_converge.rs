@@ -52,6 +52,46 @@ fn converge_writes_csv_plot_and_reference_and_its_error_falls() {
     assert!(!wrong.status.success() && err.contains("the reference is 64x48, the render size is 640x480"), "{err}");
 }
 
+/// A run into a folder an earlier run filled: the earlier files go first (no mix of runs),
+/// and the CSV holds every row printed so far, so a run killed half-way keeps them.
+#[test]
+fn an_interrupted_run_keeps_its_rows_and_no_earlier_files() {
+    use std::io::BufRead;
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("report");
+    std::fs::create_dir(&report).unwrap();
+    for f in ["reference.exr", "convergence.csv", "convergence.png"] {
+        std::fs::write(report.join(f), "from an earlier run").unwrap();
+    }
+    let mut child = Command::new(env!("CARGO_BIN_EXE_strahl"))
+        .current_dir(root())
+        .args(["converge", "assets/scenes/seed.toml", "--backend", "cpu", "--width", "32", "--height", "24"])
+        .args(["--reference-spp", "16", "--max-spp", "65536", "-o", report.to_str().unwrap()])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut printed = 0;
+    for line in stdout.lines() {
+        let line = line.unwrap();
+        if line.trim_start().starts_with("cpu ") && line.contains(" spp ") {
+            printed += 1;
+            if printed == 3 {
+                break;
+            }
+        }
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert_eq!(printed, 3, "the run printed its rows");
+    let csv = std::fs::read_to_string(report.join("convergence.csv")).unwrap();
+    let spp: Vec<&str> = csv.lines().skip(1).map(|l| l.rsplit(',').nth(5).unwrap()).collect();
+    assert!(spp.len() >= 3 && spp[..3] == ["1", "2", "4"], "{csv}");
+    assert!(image::open(report.join("reference.exr")).is_ok(), "this run's reference");
+    assert!(!report.join("convergence.png").exists(), "the earlier run's plot is gone");
+}
+
 #[test]
 fn converge_refuses_bad_flags_before_rendering() {
     let dir = tempfile::tempdir().unwrap();

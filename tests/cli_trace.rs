@@ -189,6 +189,19 @@ fn lecture_example_nearest_and_miss() {
     }
 }
 
+/// `--all` on the default backend (the GPU where there is one) when no ray hits anything,
+/// and a rays file with no rays: the header and nothing else, exit status 0.
+#[test]
+fn no_hits_and_no_rays_give_just_the_header() {
+    let no_hits = rays_csv("ox,oy,oz,dx,dy,dz", &[vec![0.0, 20.0, 0.0, 0.0, 0.0, 1.0]]);
+    for rays in [no_hits.as_str(), "ox,oy,oz,dx,dy,dz\n"] {
+        assert!(trace(&scene("lecture.toml"), rays, &["--all"]).is_empty(), "{rays:?}");
+        assert!(trace(&scene("lecture.toml"), rays, &["--all", "--backend", "cpu"]).is_empty());
+    }
+    let rows = trace(&scene("lecture.toml"), &no_hits, &[]);
+    assert_eq!((rows.len(), rows[0].object), (1, -1), "nearest mode keeps its miss row");
+}
+
 /// `-o HITS.csv` writes exactly what standard output would carry.
 #[test]
 fn output_file_matches_stdout() {

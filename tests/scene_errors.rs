@@ -67,11 +67,31 @@ fn too_many_lights_and_materials() {
     let lights = "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\n".repeat(1025);
     let e = strahl::scene::file::parse(&format!("{HEAD}{lights}"), p, Path::new(".")).unwrap_err();
     assert!(matches!(e, SceneError::TooLarge { .. }), "{e}");
-    assert_eq!(e.to_string(), "big.toml: too many lights: 1025 (at most 1024)");
+    assert_eq!(
+        e.to_string(),
+        "big.toml: too many lights: more than 1024 ([[lights]] table number 1025 is on line 4105)"
+    );
 
     let mats: String = (0..4097).map(|i| format!("[[materials]]\nname = \"m{i}\"\ntype = \"diffuse\"\n")).collect();
     let e = strahl::scene::file::parse(&format!("{HEAD}{mats}"), p, Path::new(".")).unwrap_err();
-    assert_eq!(e.to_string(), "big.toml: too many materials: 4097 (at most 4096)");
+    assert_eq!(
+        e.to_string(),
+        "big.toml: too many materials: more than 4096 ([[materials]] table number 4097 is on line 12297)"
+    );
+}
+
+/// A million and one `[[objects]]` tables are counted and refused before the document is
+/// parsed (which took 8 s and 3.4 GB); the message names the line of the first one too many.
+#[test]
+fn too_many_object_tables_are_refused_before_parsing() {
+    let p = Path::new("big.toml");
+    let objs = "[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n".repeat(1_000_001);
+    let e = strahl::scene::file::parse(&format!("{HEAD}{objs}"), p, Path::new(".")).unwrap_err();
+    assert!(matches!(e, SceneError::TooLarge { .. }), "{e}");
+    assert_eq!(
+        e.to_string(),
+        "big.toml: too many objects: more than 1000000 ([[objects]] table number 1000001 is on line 4000009)"
+    );
 }
 
 /// Heavy (about 2.4 GB and several seconds: `toml` holds a million parsed tables), so only on

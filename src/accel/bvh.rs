@@ -43,7 +43,8 @@ pub struct Bvh {
     pub depth: u32,
 }
 
-/// Deepest tree the build makes; the WGSL traversal stack (`TRAVERSAL_STACK`) holds this many.
+/// Deepest tree the build makes; the traversal stacks hold this many (the GPU's more, for the
+/// levels [`super::gpu_bvh`] adds).
 pub const MAX_DEPTH: u32 = 48;
 /// Bins per axis for nodes of at least this many primitives; smaller nodes use one bin per
 /// primitive, so that the sweep costs no more than the binning pass.

@@ -1,9 +1,11 @@
-//! Acceleration structure: a binned-SAH BVH over every bounded primitive, flattened into the
-//! node array the GPU walks ([`bvh`]), and its traversal loops ([`traverse`]), whose WGSL twin
-//! is `shaders/traverse.wgsl`. The CPU walks the same tree collapsed into 8-wide nodes
-//! ([`wide`], [`wide_traverse`]) with lane-parallel box and triangle tests ([`simd`]).
+//! Acceleration structure: a binned-SAH BVH over every bounded primitive, flattened depth-first
+//! ([`bvh`]), with its binary traversal loops ([`traverse`]); the same tree collapsed into the
+//! layout the GPU walks ([`gpu_bvh`]), whose walk is the twin of `shaders/traverse.wgsl`; and
+//! into the 8-wide nodes the CPU renderers walk ([`wide`], [`wide_traverse`]) with
+//! lane-parallel box and triangle tests ([`simd`]).
 
 pub mod bvh;
+pub mod gpu_bvh;
 pub mod huge_pages;
 pub mod simd;
 pub mod traverse;

@@ -1,4 +1,6 @@
-//! BVH traversal; `shaders/traverse.wgsl` is its line-by-line twin.
+//! BVH traversal of the binary tree, as the CPU renderer runs it; the GPU walks the collapsed
+//! tree of [`super::gpu_bvh`] (whose walk is the twin of `shaders/traverse.wgsl`). Both return
+//! exactly what brute force returns.
 
 use super::bvh::{Bvh, BvhNode, MAX_DEPTH};
 use crate::math::{Ray, Real, V3};
@@ -7,19 +9,21 @@ use crate::primitives::{Hit, Nearest, Primitives, sort_hits};
 /// Stack entries: a node to visit and the distance at which the ray enters its box.
 const STACK: usize = MAX_DEPTH as usize + 1;
 
-/// 1/d per axis, with zero (and tiny) components replaced by ±1e-30 first, so the slab test
-/// never forms 0·∞ = NaN for axis-parallel rays: the replaced axis gives slab distances of
-/// ±1e30·(gap), which are beyond every real hit, or exactly 0 on the slab plane.
+/// 1/d per axis, with components below 1e-30 in magnitude (the ray runs parallel to that
+/// axis) set to 0, which [`slab`] takes apart: 0·∞ would be NaN, and a finite stand-in such as
+/// 1e30 gives slab distances of 1e30·(gap) that real hits can exceed (a ray from 1e38 away).
 #[inline]
 pub fn safe_inverse<R: Real>(d: V3<R>) -> V3<R> {
     let tiny = R::from_f64(1e-30);
-    let fix = |v: R| if v.abs() < tiny { if v < R::ZERO { -tiny } else { tiny } } else { v };
-    V3::new(R::ONE / fix(d.x), R::ONE / fix(d.y), R::ONE / fix(d.z))
+    let inv = |v: R| if v.abs() < tiny { R::ZERO } else { R::ONE / v };
+    V3::new(inv(d.x), inv(d.y), inv(d.z))
 }
 
 /// Ray/box slab test over [tmin, tmax]; returns the entry distance or `None`. The far
 /// distance is scaled by 1 + 2γ(3) (pbrt-v3 §3.9.2), which covers the rounding of the three
 /// operations behind each slab distance, so a box is never missed where its contents are hit.
+/// An axis the ray runs parallel to (`inv` 0) bounds nothing while the origin lies within the
+/// box on it, and rules the box out otherwise: exact at any distance.
 #[inline]
 pub fn slab<R: Real>(node: &BvhNode, ray: &Ray<R>, inv: V3<R>, tmin: R, tmax: R) -> Option<R> {
     let grow = R::ONE + R::from_f64(2.0) * R::gamma_bound(3);
@@ -28,6 +32,12 @@ pub fn slab<R: Real>(node: &BvhNode, ray: &Ray<R>, inv: V3<R>, tmin: R, tmax: R)
     for a in 0..3 {
         let lo = R::from_f64(node.bmin[a] as f64);
         let hi = R::from_f64(node.bmax[a] as f64);
+        if inv[a] == R::ZERO {
+            if ray.origin[a] < lo || ray.origin[a] > hi {
+                return None;
+            }
+            continue;
+        }
         let t0 = (lo - ray.origin[a]) * inv[a];
         let t1 = (hi - ray.origin[a]) * inv[a];
         let (t0, t1) = if t0 > t1 { (t1, t0) } else { (t0, t1) };
@@ -180,6 +190,36 @@ mod tests {
             let ray = ray_f32(&rng.ray_towards(80.0, V3::zero(), 50.0));
             assert_eq!(prims.all_brute(&ray, 0.0, f32::INFINITY), all(&bvh, &prims, &ray, 0.0, f32::INFINITY));
         }
+    }
+
+    /// A ray parallel to two axes from 1e38 away enters a box at t ≈ 1e38: the parallel axes
+    /// must not bound it (a stand-in inverse of 1e30 cut it off at 1e30·gap and the BVH missed
+    /// what brute force hit), and the box on its max face is entered too.
+    #[test]
+    fn parallel_axes_bound_nothing_at_any_distance() {
+        let node = BvhNode { bmin: [-5.0, -5.0, 3.0], left_or_first: 0, bmax: [5.0, 5.0, 13.0], count: 1 };
+        let far = Ray::new(V3::<f32>::new(1e38, 0.0, 8.0), V3::new(-1.0, 0.0, 0.0));
+        assert_eq!(slab(&node, &far, safe_inverse(far.dir), 0.0, f32::INFINITY), Some(1e38));
+        let on_max_face = Ray::new(V3::<f32>::new(-20.0, 5.0, 13.0), V3::new(1.0, 0.0, 0.0));
+        assert_eq!(slab(&node, &on_max_face, safe_inverse(on_max_face.dir), 0.0, f32::INFINITY), Some(15.0));
+        let beside = Ray::new(V3::<f32>::new(-20.0, 5.0 + 1e-6, 8.0), V3::new(1.0, 0.0, 0.0));
+        assert_eq!(slab(&node, &beside, safe_inverse(beside.dir), 0.0, f32::INFINITY), None);
+        // The lecture's spheres, through the BVH and by brute force.
+        let mut prims = Primitives::<f32>::default();
+        for (i, (c, r)) in
+            [([0.0, 0.0, 8.0], 5.0), ([0.0, 0.0, 9.0], 3.0), ([0.0, -3.0, 8.0], 2.0)].into_iter().enumerate()
+        {
+            let shape = crate::geometry::Sphere { center: V3::from_array(c), radius: r };
+            prims.spheres.push(crate::primitives::Tagged {
+                shape,
+                tag: crate::primitives::Tag { object: i as u32, ..Default::default() },
+            });
+        }
+        let bvh = Bvh::build(&prims);
+        let hits = all(&bvh, &prims, &far, 0.0, f32::INFINITY);
+        assert_eq!(hits, prims.all_brute(&far, 0.0, f32::INFINITY));
+        assert_eq!(hits.len(), 2, "{hits:?}");
+        assert!(hits.iter().all(|h| h.t == 1e38 && h.normal.is_finite()), "{hits:?}");
     }
 
     #[test]

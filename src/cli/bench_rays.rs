@@ -199,7 +199,7 @@ fn cast_cpu(wide: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], one_at_a
 }
 
 /// Uploads the scene and casts `rays` through `strahl trace`'s GPU path `reps` times:
-/// (adapter, upload seconds, bytes of triangles + nodes + references, times, hits).
+/// (adapter, upload seconds, bytes of the walk's nodes, triangles and references, times, hits).
 fn cast_gpu(
     scene: &Scene,
     prims: &Primitives<f32>,
@@ -214,9 +214,10 @@ fn cast_gpu(
     let gpu = strahl::gpu_types::GpuScene::new(scene, prims, bvh);
     let buffers = SceneBuffers::upload(&ctx, &gpu)?;
     let upload_s = start.elapsed().as_secs_f64();
-    let bytes = std::mem::size_of_val(gpu.triangles.as_slice())
+    // What the walk reads: nodes, leaf-order triangles and shape references.
+    let bytes = std::mem::size_of_val(gpu.leaf_triangles.as_slice())
         + std::mem::size_of_val(gpu.nodes.as_slice())
-        + std::mem::size_of_val(gpu.prim_refs.as_slice());
+        + std::mem::size_of_val(gpu.shape_refs.as_slice());
     let queries: Vec<RayQuery> = rays
         .iter()
         .map(|r| RayQuery { origin: r.origin.to_f64(), dir: r.dir.to_f64(), tmin: 0.0, tmax: f64::INFINITY })

@@ -38,7 +38,12 @@ pub struct ConvergeArgs {
     #[arg(long, value_enum, default_value = "both")]
     pub backend: ConvergeBackend,
     /// Reference image (linear EXR) at the render size; default: render one.
-    #[arg(long, value_name = "REF.exr", conflicts_with_all = ["reference_spp", "reference_backend"])]
+    #[arg(
+        long,
+        value_name = "REF.exr",
+        value_parser = super::exr_file_name,
+        conflicts_with_all = ["reference_spp", "reference_backend"]
+    )]
     pub reference: Option<PathBuf>,
     /// Samples per pixel of the rendered reference.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=65536))]
@@ -72,9 +77,11 @@ fn positive_seconds(s: &str) -> Result<f64, String> {
 const REFERENCE_CHUNK: u32 = 16;
 
 pub fn run(a: ConvergeArgs) -> Result<()> {
-    if a.output.exists() && !a.output.is_dir() {
-        bail!("{}: exists and is not a directory", a.output.display());
+    if let (Some(w), Some(h)) = (a.width, a.height) {
+        super::check_image_size(w, h, true)?;
     }
+    // Problems with the output folder or the reference surface before any work.
+    strahl::output::check_dir_target(&a.output)?;
     if let Some(r) = &a.reference
         && !r.is_file()
     {
@@ -84,38 +91,38 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
     scene.render.mode = RenderMode::Path;
     let width = a.width.unwrap_or(scene.image.width);
     let height = a.height.unwrap_or(scene.image.height);
-    if width as u64 * height as u64 > strahl::scene::file::MAX_IMAGE_PIXELS {
-        bail!("{width}x{height} is more than {} pixels", strahl::scene::file::MAX_IMAGE_PIXELS);
-    }
-    std::fs::create_dir_all(&a.output).with_context(|| format!("cannot create {}", a.output.display()))?;
-    let backends = a.backend.list();
+    super::check_image_size(width, height, a.width.is_some() || a.height.is_some())?;
     let schedule = match a.time {
         Some(seconds) => Schedule::FixedTime { seconds, max_spp: a.max_spp },
         None => Schedule::Doubling { max_spp: a.max_spp },
+    };
+    let reference_input = match &a.reference {
+        Some(path) => Some(load_reference(path, width, height)?),
+        None => None,
     };
 
     let prep = Arc::new(Prepared::try_new(scene)?);
     super::print_scene_summary(&prep);
 
-    let reference = match &a.reference {
-        Some(path) => {
-            let img = Image::load(path)?;
-            ensure!(
-                (img.width, img.height) == (width, height),
-                "{}: the reference is {}x{}, the render size is {width}x{height}",
-                path.display(),
-                img.width,
-                img.height
-            );
-            println!("reference: {}", path.display());
-            img
+    // Every measured backend is opened (and the GPU's pipeline compiled) before anything is
+    // rendered or written: without a GPU, `both` measures the CPU alone, `gpu` fails here.
+    let mut measured = Vec::new();
+    for backend in a.backend.list() {
+        match open_backend(&prep, backend, width, height, MEASURED_SEED) {
+            Ok(p) => measured.push(p),
+            Err(e) if a.backend == ConvergeBackend::Both && backend == BackendChoice::Gpu => {
+                eprintln!("gpu backend unavailable ({}); measuring the cpu only", strahl::errors::chain(&e));
+            }
+            Err(e) => return Err(e.context(format!("opening the {} backend", backend_id(backend)))),
         }
+    }
+    let gpu_measured = measured.iter().any(|p| p.backend() == "gpu");
+
+    let reference = match reference_input {
+        Some(img) => img,
         None => {
-            let backend = a.reference_backend.unwrap_or(if backends.contains(&BackendChoice::Gpu) {
-                BackendChoice::Gpu
-            } else {
-                BackendChoice::Cpu
-            });
+            let backend =
+                a.reference_backend.unwrap_or(if gpu_measured { BackendChoice::Gpu } else { BackendChoice::Cpu });
             if a.max_spp.saturating_mul(4) > a.reference_spp {
                 eprintln!(
                     "note: the reference ({} spp) is not much less noisy than the last measured image \
@@ -123,32 +130,36 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
                     a.reference_spp, a.max_spp
                 );
             }
-            let img = render_reference(&prep, backend, width, height, a.reference_spp)?;
-            let path = a.output.join("reference.exr");
-            img.save(&path)?;
-            println!(
-                "reference: {} spp on the {} backend, wrote {}",
-                a.reference_spp,
-                backend_id(backend),
-                path.display()
-            );
-            img
+            render_reference(&prep, backend, width, height, a.reference_spp)?
         }
     };
     let bad = reference.non_finite_count();
     ensure!(bad == 0, "the reference has {bad} non-finite (NaN or infinite) pixels");
 
-    let mut rows = Vec::new();
-    for backend in backends {
-        let mut p = open_backend(&prep, backend, width, height, MEASURED_SEED)
-            .with_context(|| format!("opening the {} backend", backend_id(backend)))?;
-        println!("{}:", p.label());
-        rows.extend(strahl::converge::measure(p.as_mut(), &reference, &schedule, &mut print_row)?);
+    // The folder holds one run: the previous run's files go before this run writes any.
+    let out = RunFolder::start(&a.output, a.reference.as_deref())?;
+    if a.reference.is_none() {
+        let path = out.path(REFERENCE_FILE);
+        reference.save(&path)?;
+        println!("reference: {} spp, wrote {}", a.reference_spp, path.display());
+    } else if let Some(path) = &a.reference {
+        println!("reference: {}", path.display());
     }
 
-    let csv = a.output.join("convergence.csv");
-    strahl::converge::write_csv(&rows, &csv)?;
-    let png = a.output.join("convergence.png");
+    // The CSV is rewritten (atomically) after every row: an interrupted run keeps its rows.
+    let csv = out.path(CSV_FILE);
+    let mut rows = Vec::new();
+    for mut p in measured {
+        println!("{}:", p.label());
+        let mut on_row = |r: &Row| {
+            rows.push(r.clone());
+            strahl::converge::write_csv(&rows, &csv)?;
+            print_row(r);
+            Ok(())
+        };
+        strahl::converge::measure(p.as_mut(), &reference, &schedule, &mut on_row)?;
+    }
+    let png = out.path(PLOT_FILE);
     strahl::converge::plot(&rows, &plot_title(&a.scene, width, height), &png)?;
     println!();
     print!("{}", strahl::converge::table(&rows));
@@ -156,6 +167,60 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
     println!("wrote {}", csv.display());
     println!("wrote {}", png.display());
     Ok(())
+}
+
+const REFERENCE_FILE: &str = "reference.exr";
+const CSV_FILE: &str = "convergence.csv";
+const PLOT_FILE: &str = "convergence.png";
+
+/// The output folder of one run. [`RunFolder::start`] creates it if missing and removes the
+/// files an earlier run left there (except an input reference among them), so the folder never
+/// holds a mix of two runs.
+struct RunFolder {
+    dir: PathBuf,
+}
+
+impl RunFolder {
+    fn start(dir: &Path, keep: Option<&Path>) -> Result<Self> {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        let keep = keep.and_then(|k| k.canonicalize().ok());
+        for name in [REFERENCE_FILE, CSV_FILE, PLOT_FILE] {
+            let old = dir.join(name);
+            if old.is_file() && old.canonicalize().ok() != keep {
+                std::fs::remove_file(&old)
+                    .with_context(|| format!("cannot remove the earlier run's {}", old.display()))?;
+            }
+        }
+        Ok(Self { dir: dir.to_path_buf() })
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.join(name)
+    }
+}
+
+/// The reference image at `path`: a linear OpenEXR file (by its contents, not only its name)
+/// of the render size.
+fn load_reference(path: &Path, width: u32, height: u32) -> Result<Image> {
+    let format = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| anyhow::anyhow!("cannot read image {}: {e}", path.display()))?
+        .format();
+    ensure!(
+        format == Some(image::ImageFormat::OpenExr),
+        "{}: the reference must be a linear OpenEXR image; this file is {}",
+        path.display(),
+        format.map_or("of an unknown format".to_string(), |f| format!("{f:?}"))
+    );
+    let img = Image::load(path)?;
+    ensure!(
+        (img.width, img.height) == (width, height),
+        "{}: the reference is {}x{}, the render size is {width}x{height}",
+        path.display(),
+        img.width,
+        img.height
+    );
+    Ok(img)
 }
 
 /// Seed of the measured runs; the rendered reference uses [`REFERENCE_SEED`], so its noise is
@@ -192,6 +257,7 @@ fn open_backend(
 fn render_reference(prep: &Arc<Prepared>, backend: BackendChoice, width: u32, height: u32, spp: u32) -> Result<Image> {
     let mut p = open_backend(prep, backend, width, height, REFERENCE_SEED)
         .with_context(|| format!("opening the {} backend for the reference", backend_id(backend)))?;
+    println!("reference: rendering {spp} spp on the {} backend", backend_id(backend));
     let bar = progress_bar(spp as u64, &format!("reference ({})", backend_id(backend)));
     while p.samples() < spp {
         p.add_samples(REFERENCE_CHUNK.min(spp - p.samples()))?;

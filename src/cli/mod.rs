@@ -8,7 +8,8 @@ mod stiff;
 mod trace;
 mod view;
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{CommandFactory, Parser, Subcommand, ValueEnum};
+use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -55,6 +56,46 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Stiff(a) => stiff::run(a),
         Command::View(a) => view::run(a),
         Command::Converge(a) => converge::run(a),
+    }
+}
+
+/// A bad argument found after parsing (a value valid alone but not with the scene or the other
+/// flags): printed with the usage and exit status 2, like clap's own errors.
+pub fn usage_error(message: impl std::fmt::Display) -> anyhow::Error {
+    Cli::command().error(clap::error::ErrorKind::ValueValidation, message).into()
+}
+
+/// Fails with a usage error when `width`×`height` exceeds the pixel limit and a flag set one
+/// of them (else the scene file is at fault, which names its own error).
+pub fn check_image_size(width: u32, height: u32, flags: bool) -> anyhow::Result<()> {
+    let max = strahl::scene::file::MAX_IMAGE_PIXELS;
+    if width as u64 * height as u64 > max {
+        let message = format!("--width/--height: {width}x{height} is more than {max} pixels");
+        return Err(if flags { usage_error(message) } else { anyhow::anyhow!(message) });
+    }
+    Ok(())
+}
+
+/// `-o`/`--output` of an image: a `.png` or `.exr` file name (checked while parsing).
+pub fn image_file_name(s: &str) -> Result<PathBuf, String> {
+    file_name_with(s, &["png", "exr"], "use a .png or .exr file name")
+}
+
+/// A PNG file name (checked while parsing).
+pub fn png_file_name(s: &str) -> Result<PathBuf, String> {
+    file_name_with(s, &["png"], "the screenshot is saved as PNG; use a .png file name")
+}
+
+/// A linear EXR image's file name (checked while parsing).
+pub fn exr_file_name(s: &str) -> Result<PathBuf, String> {
+    file_name_with(s, &["exr"], "the reference must be a linear EXR image; use a .exr file")
+}
+
+fn file_name_with(s: &str, extensions: &[&str], hint: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(s);
+    match path.extension().and_then(|e| e.to_str()) {
+        Some(e) if extensions.iter().any(|x| x.eq_ignore_ascii_case(e)) => Ok(path),
+        _ => Err(format!("{s}: unknown image format; {hint}")),
     }
 }
 

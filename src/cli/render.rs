@@ -1,7 +1,7 @@
 //! `strahl render`.
 
 use super::{BackendChoice, progress_bar};
-use anyhow::{Context, Result, bail};
+use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -14,7 +14,7 @@ pub struct RenderArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
     /// Output image: .png (8-bit sRGB) or .exr (linear float).
-    #[arg(short, long)]
+    #[arg(short, long, value_parser = super::image_file_name)]
     pub output: PathBuf,
     /// Where to render (default: gpu, falling back to cpu when no Vulkan adapter exists).
     #[arg(long, value_enum)]
@@ -58,7 +58,11 @@ impl From<ModeChoice> for RenderMode {
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
-    check_output_extension(&a.output)?;
+    if let (Some(w), Some(h)) = (a.width, a.height) {
+        super::check_image_size(w, h, true)?;
+    }
+    // A missing, read-only or misnamed output fails now, not after the render.
+    strahl::output::check_file_target(&a.output)?;
     let mut scene = Scene::load(&a.scene)?;
     if let Some(spp) = a.spp {
         scene.render.spp = spp;
@@ -72,9 +76,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let mode = scene.render.mode;
     let width = a.width.unwrap_or(scene.image.width);
     let height = a.height.unwrap_or(scene.image.height);
-    if width as u64 * height as u64 > strahl::scene::file::MAX_IMAGE_PIXELS {
-        bail!("{width}x{height} is more than {} pixels", strahl::scene::file::MAX_IMAGE_PIXELS);
-    }
+    super::check_image_size(width, height, a.width.is_some() || a.height.is_some())?;
     let prep = Prepared::try_new(scene)?;
     super::print_scene_summary(&prep);
     let mut frame = prep.frame(width, height);
@@ -136,15 +138,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             img
         }
     };
-    image.save(&a.output).with_context(|| format!("writing {}", a.output.display()))?;
+    image.save(&a.output)?;
     println!("wrote {}", a.output.display());
     Ok(())
-}
-
-/// Fails before any work when the output format is unknown.
-fn check_output_extension(path: &std::path::Path) -> Result<()> {
-    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-        Some("png" | "exr") => Ok(()),
-        _ => bail!("{}: unknown image format; use a .png or .exr file name", path.display()),
-    }
 }

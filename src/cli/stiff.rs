@@ -14,21 +14,34 @@ pub enum StiffBackend {
 
 #[derive(Args, Debug)]
 pub struct StiffArgs {
-    /// Which backends to run (the textbook rows run with the CPU).
+    /// Which backends to run (the textbook rows run with the CPU; `both` runs the CPU alone,
+    /// with a note, where there is no Vulkan adapter).
     #[arg(long, value_enum, default_value = "both")]
     pub backend: StiffBackend,
-    /// Fraction of the full ray counts (1: 1e7 rays at closed meshes, 1e6 spawned rays, ...).
-    #[arg(long, default_value_t = 1.0)]
+    /// Fraction of the full ray counts (1: 1e7 rays at closed meshes, 1e6 spawned rays, ...),
+    /// in (0, 10].
+    #[arg(long, default_value_t = 1.0, value_parser = ray_scale)]
     pub scale: f64,
 }
 
-pub fn run(a: StiffArgs) -> Result<()> {
-    if !(a.scale > 0.0 && a.scale <= 10.0) {
-        anyhow::bail!("--scale must be in (0, 10], got {}", a.scale);
+fn ray_scale(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v > 0.0 && v <= 10.0 => Ok(v),
+        _ => Err(format!("must be a number in (0, 10], not {s:?}")),
     }
+}
+
+pub fn run(a: StiffArgs) -> Result<()> {
     let ctx = match a.backend {
         StiffBackend::Cpu => None,
-        _ => Some(GpuContext::new()?),
+        StiffBackend::Gpu => Some(GpuContext::new()?),
+        StiffBackend::Both => match GpuContext::new() {
+            Ok(ctx) => Some(ctx),
+            Err(e) => {
+                eprintln!("gpu backend unavailable ({e}); running the cpu rows only");
+                None
+            }
+        },
     };
     if let Some(c) = &ctx {
         eprintln!("gpu: {}", c.adapter_name());

@@ -1,7 +1,7 @@
 //! `strahl trace`.
 
 use super::BackendChoice;
-use anyhow::{Context, Result, bail};
+use anyhow::Result;
 use clap::{Args, ValueEnum};
 use std::io::Write;
 use std::path::PathBuf;
@@ -40,14 +40,17 @@ pub struct TraceArgs {
 }
 
 pub fn run(a: TraceArgs) -> Result<()> {
+    if (a.backend, a.precision) == (Some(BackendChoice::Gpu), Precision::F64) {
+        return Err(super::usage_error("--precision f64 needs --backend cpu: the GPU traces in f32"));
+    }
+    if let Some(path) = &a.output {
+        strahl::output::check_file_target(path)?;
+    }
     let scene = Scene::load(&a.scene)?;
     strahl::render::check_memory(&scene, strahl::render::available_memory())?;
     let rays = read_rays(&a.rays)?;
     let start = Instant::now();
     let csv = match (a.backend, a.precision) {
-        (Some(BackendChoice::Gpu), Precision::F64) => {
-            bail!("--precision f64 needs --backend cpu: the GPU traces in f32")
-        }
         (_, Precision::F64) => cpu_csv::<f64>(&scene, &rays, a.all),
         (Some(BackendChoice::Cpu), Precision::F32) => cpu_csv::<f32>(&scene, &rays, a.all),
         (Some(BackendChoice::Gpu), Precision::F32) => gpu_csv(GpuContext::new()?, &scene, &rays, a.all)?,
@@ -62,7 +65,7 @@ pub fn run(a: TraceArgs) -> Result<()> {
     let secs = start.elapsed().as_secs_f64();
     match &a.output {
         Some(path) => {
-            std::fs::write(path, csv).with_context(|| format!("cannot write {}", path.display()))?;
+            strahl::output::write_bytes_atomic(path, csv.as_bytes())?;
             eprintln!("traced {} rays in {secs:.3} s; wrote {}", rays.len(), path.display());
         }
         None => std::io::stdout().write_all(csv.as_bytes())?,

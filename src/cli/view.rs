@@ -1,6 +1,6 @@
 //! `strahl view`.
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
 use strahl::viewer::{ViewOptions, gpu::ViewMode};
@@ -13,7 +13,7 @@ pub struct ViewArgs {
     #[arg(long, default_value = "1280x720", value_parser = parse_size)]
     pub size: (u32, u32),
     /// Render resolution as a fraction of the image area's pixels (0.1 to 1).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = render_scale)]
     pub scale: f32,
     /// What the image shows.
     #[arg(long, value_enum, default_value = "whitted")]
@@ -26,7 +26,7 @@ pub struct ViewArgs {
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100000))]
     pub frames: Option<u32>,
     /// Save the window as this PNG file after --frames frames (default 1), then exit.
-    #[arg(long)]
+    #[arg(long, value_parser = super::png_file_name)]
     pub screenshot: Option<PathBuf>,
 }
 
@@ -39,14 +39,16 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((side(w)?, side(h)?))
 }
 
-pub fn run(a: ViewArgs) -> Result<()> {
-    if !(0.1..=1.0).contains(&a.scale) {
-        bail!("--scale must be from 0.1 to 1, not {}", a.scale);
+fn render_scale(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if (0.1..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("must be a number from 0.1 to 1, not {s:?}")),
     }
-    if let Some(p) = &a.screenshot
-        && !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))
-    {
-        bail!("{}: the screenshot is saved as PNG; use a .png file name", p.display());
+}
+
+pub fn run(a: ViewArgs) -> Result<()> {
+    if let Some(p) = &a.screenshot {
+        strahl::output::check_file_target(p)?;
     }
     strahl::viewer::run(ViewOptions {
         scene: a.scene,

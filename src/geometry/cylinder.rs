@@ -1,7 +1,7 @@
 //! Ray/finite cylinder: the lecture's open surface between p1 and p2 (α ∈ [0, 1] along the
 //! axis), plus optional end caps that make it a closed solid.
 
-use super::{Part, Roots, Shape, stable_quadratic};
+use super::{Part, Roots, Shape, stable_quadratic, unit_or};
 use crate::math::{Ray, Real, V3};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -97,8 +97,9 @@ impl<R: Real> Shape<R> for Cylinder<R> {
             Part::CapP1 => -axis,
             Part::CapP2 => axis,
             Part::Surface => {
+                // Facing the ray where the hit point rounds onto the axis ([`unit_or`]).
                 let q = (ray.origin - self.p1) + ray.dir * t;
-                (q - axis * q.dot(axis)).normalize()
+                unit_or(q - axis * q.dot(axis), -ray.dir)
             }
         }
     }

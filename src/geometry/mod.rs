@@ -77,6 +77,15 @@ pub trait Shape<R: Real> {
     fn bounds(&self) -> Option<(V3<R>, V3<R>)>;
 }
 
+/// `n` normalised, or `fallback` where `n` is zero or its squared length overflows: a normal
+/// from a hit point that rounding put on a sphere's centre or a cylinder's axis (a ray from
+/// 1e38 away, where f32 cannot tell the surface from the centre). No NaN leaves a normal.
+#[inline]
+pub fn unit_or<R: Real>(n: V3<R>, fallback: V3<R>) -> V3<R> {
+    let l2 = n.dot(n);
+    if l2 > R::ZERO && l2.is_finite() { n.normalize() } else { fallback }
+}
+
 /// Solves a t² + 2βt + c = 0 for its real roots in the form that does not cancel
 /// (Press et al., Numerical Recipes §5.6; Haines et al., Ray Tracing Gems ch. 7):
 /// q = −(β + sign(β)·√Δ), t₁ = q/a, t₂ = c/q, with the discriminant Δ = β² − ac supplied by

@@ -1,6 +1,6 @@
 //! Ray/sphere: |p0 + μd − p_s|² − r² = 0 (the lecture's first quadric).
 
-use super::{Part, Roots, Shape, stable_quadratic};
+use super::{Part, Roots, Shape, stable_quadratic, unit_or};
 use crate::math::{Ray, Real, V3};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,8 +43,9 @@ impl<R: Real> Shape<R> for Sphere<R> {
         roots
     }
 
+    /// Facing the ray where the hit point rounds onto the centre ([`unit_or`]).
     fn normal(&self, ray: &Ray<R>, t: R, _part: Part) -> V3<R> {
-        ((ray.origin - self.center) + ray.dir * t).normalize()
+        unit_or((ray.origin - self.center) + ray.dir * t, -ray.dir)
     }
 
     fn bounds(&self) -> Option<(V3<R>, V3<R>)> {

@@ -4,8 +4,10 @@
 //! The vertices are translated to the ray origin, sheared so that the ray becomes the +z
 //! axis, and the three 2D edge functions U, V, W are evaluated there. An edge shared by two
 //! triangles is evaluated from the same two sheared vertices in both, with opposite sign, so
-//! a ray can never pass between them: a point exactly on the edge gives U = 0 for both and
-//! both accept it. Polygons and meshes reach the tracer as these triangles.
+//! a ray can never pass between them. A point exactly on the edge gives U = 0 for both; a
+//! tie rule gives it to exactly one of them ([`edge_tie`]), so a ray crossing a shared edge or
+//! vertex is one hit, on every backend. Polygons and meshes reach the tracer as these
+//! triangles.
 
 use super::{Part, Roots, Shape};
 use crate::math::{Ray, Real, V3};
@@ -44,6 +46,23 @@ impl<R: Real> Shear<R> {
     }
 }
 
+/// The sign an edge function of exactly 0 counts with: that of the sheared edge vector's y,
+/// or of −x when y is 0 too (the top-left rule of rasterisers). The vector of a shared edge is
+/// exactly negated in its other triangle, so the point goes to exactly one of the two: the
+/// one whose other edge functions share this sign. Where rounding makes an edge function 0
+/// (lavapipe evaluates `fma` as a multiply and an add, so the GPU's edge functions are 0
+/// more often than the CPU's exact-sign ones), the crossing is still one hit, never two.
+#[inline]
+pub fn edge_tie<R: Real>(e: R, ex: R, ey: R) -> R {
+    if e != R::ZERO {
+        e
+    } else if ey != R::ZERO {
+        ey
+    } else {
+        -ex
+    }
+}
+
 impl<R: Real> Triangle<R> {
     pub fn cast<S: Real>(&self) -> Triangle<S> {
         Triangle { v: [self.v[0].cast(), self.v[1].cast(), self.v[2].cast()] }
@@ -68,13 +87,14 @@ impl<R: Real> Triangle<R> {
         let cy = c[s.ky] - s.sy * c[s.kz];
         // Edge functions with the exact sign (see Real::diff_of_products): a shared edge gives
         // opposite signs in its two triangles whatever the rounding, so no ray slips between.
-        // A point exactly on an edge (value 0) is inside both triangles: a double hit, never a
-        // gap; the nearest-hit search keeps the smaller PrimRef. No f64 is needed on the GPU.
+        // A point exactly on an edge (value 0) belongs to one triangle by the tie rule.
         let u = R::diff_of_products(cx, by, cy, bx);
         let v = R::diff_of_products(ax, cy, ay, cx);
         let w = R::diff_of_products(bx, ay, by, ax);
+        let (su, sv, sw) =
+            (edge_tie(u, cx - bx, cy - by), edge_tie(v, ax - cx, ay - cy), edge_tie(w, bx - ax, by - ay));
         let zero = R::ZERO;
-        if (u < zero || v < zero || w < zero) && (u > zero || v > zero || w > zero) {
+        if (su < zero || sv < zero || sw < zero) && (su > zero || sv > zero || sw > zero) {
             return None;
         }
         let det = u + v + w;
@@ -145,6 +165,33 @@ mod tests {
             let ray = Ray::new(origin, (target - origin).normalize());
             let hits: usize = fan.iter().map(|t| t.roots(&ray, 0.0, f32::INFINITY).len).sum();
             assert!(hits >= 1, "ray {ray:?} fell through at {target:?}");
+        }
+    }
+
+    /// Rays exactly through points of a shared edge, and through the vertex a fan shares, hit
+    /// exactly one triangle (both or all four reported a hit before the tie rule).
+    #[test]
+    fn a_shared_edge_or_vertex_is_hit_once() {
+        let z = 3.0f32;
+        let c = [V3::new(0.0, 0.0, z), V3::new(1.0, 0.0, z), V3::new(1.0, 1.0, z), V3::new(0.0, 1.0, z)];
+        // The square split along its diagonal c0–c2, both halves wound alike.
+        let halves = [Triangle { v: [c[0], c[1], c[2]] }, Triangle { v: [c[0], c[2], c[3]] }];
+        let m = V3::new(0.5, 0.5, z);
+        let fan: Vec<Triangle<f32>> = (0..4).map(|i| Triangle { v: [c[i], c[(i + 1) % 4], m] }).collect();
+        for dz in [1.0f32, -1.0] {
+            for k in 1..64 {
+                let s = k as f32 / 64.0;
+                let ray = Ray::new(V3::new(s, s, z - 5.0 * dz), V3::new(0.0, 0.0, dz));
+                let n: usize = halves.iter().map(|t| t.roots(&ray, 0.0, f32::INFINITY).len).sum();
+                assert_eq!(n, 1, "diagonal point {s}, direction {dz}");
+                // The fan's edges from the corners to the centre.
+                let on_spoke = Ray::new(V3::new(s * 0.5, s * 0.5, z - 5.0 * dz), V3::new(0.0, 0.0, dz));
+                let n: usize = fan.iter().map(|t| t.roots(&on_spoke, 0.0, f32::INFINITY).len).sum();
+                assert_eq!(n, 1, "spoke point {s}, direction {dz}");
+            }
+            let centre = Ray::new(V3::new(0.5, 0.5, z - 5.0 * dz), V3::new(0.0, 0.0, dz));
+            let n: usize = fan.iter().map(|t| t.roots(&centre, 0.0, f32::INFINITY).len).sum();
+            assert_eq!(n, 1, "the fan's centre, direction {dz}");
         }
     }
 

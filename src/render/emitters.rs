@@ -2,20 +2,23 @@
 //! emitters exist, how one is chosen, where on it a point is drawn, and the density of that
 //! choice, which multiple importance sampling needs for paths that hit an emitter by chance.
 //!
-//! Emitters are chosen in proportion to their power (mean radiance × area for emissive
-//! triangles and spheres, mean intensity × 4π for point lights, mean irradiance × the scene's
-//! cross-section for directional lights), then a point is drawn uniformly on the chosen area.
-//! For an area emitter of radiance L the two steps give the area density
-//! (mean(L)·A/W)·(1/A) = mean(L)/W, the same for every triangle or sphere of that radiance:
-//! that is [`crate::gpu_types::GpuFrame::emitter_norm`] = 1/W.
+//! Area emitters (emissive triangles and spheres) are chosen in proportion to their power
+//! (mean radiance × area), then a point is drawn uniformly on the chosen area. For an emitter
+//! of radiance L the two steps give the area density (mean(L)·A/W)·(1/A) = mean(L)/W, the same
+//! for every triangle or sphere of that radiance: that is
+//! [`crate::gpu_types::GpuFrame::emitter_norm`] = 1/W.
+//!
+//! Point and directional lights are not chosen: each is evaluated at every vertex
+//! ([`delta_light`]), one shadow ray apiece, as Whitted shading does. Chosen by power among the
+//! others they could be starved: a directional light's power had to be guessed from the
+//! bounded objects' cross-section, which says nothing of an infinite plane it also lights, so
+//! beside one it was drawn once in ~700 vertices and weighted ~700× (fireflies).
 //!
 //! Emissive cylinders and planes are not sampled (a plane has no finite area): they light the
 //! scene through paths that hit them, with MIS weight 1.
 
-use crate::accel::Bvh;
 use crate::gpu_types::{
-    EMITTER_AREA, EMITTER_LIGHT, GpuEmitter, GpuFrame, GpuLight, GpuScene, LIGHT_POINT, LIGHT_STAND_IN,
-    MATERIAL_TWO_SIDED,
+    EMITTER_AREA, GpuEmitter, GpuFrame, GpuLight, GpuScene, LIGHT_POINT, LIGHT_STAND_IN, MATERIAL_TWO_SIDED,
 };
 use crate::math::V3;
 use crate::primitives::{PrimKind, PrimRef};
@@ -69,8 +72,8 @@ fn area_centroid(tris: &[crate::geometry::Triangle<f64>]) -> (V3<f64>, f64) {
     (if area > 0.0 { sum / area } else { V3::zero() }, area)
 }
 
-/// The emitter table of `g` (whose lights already hold any stand-ins) and 1 / Σ weights.
-pub fn build_emitters(g: &GpuScene, bvh: &Bvh) -> (Vec<GpuEmitter>, f32) {
+/// The area-emitter table of `g` and 1 / Σ weights.
+pub fn build_emitters(g: &GpuScene) -> (Vec<GpuEmitter>, f32) {
     let emissive = |material: u32| {
         let m = &g.materials[material as usize];
         (m.kind == MaterialKind::Emissive as u32 && mean(m.radiance) > 0.0).then(|| mean(m.radiance) as f64)
@@ -91,18 +94,6 @@ pub fn build_emitters(g: &GpuScene, bvh: &Bvh) -> (Vec<GpuEmitter>, f32) {
             let r = s.radius as f64;
             entries.push((PrimRef::new(PrimKind::Sphere, i).0, EMITTER_AREA, l * 4.0 * PI * r * r));
         }
-    }
-    // A directional light's power is what crosses the scene's bounding sphere.
-    let radius = bvh.nodes.first().map_or(1.0, |n| {
-        let ext = V3::from_array(n.bmax).to_f64() - V3::from_array(n.bmin).to_f64();
-        (0.5 * ext.length()).max(1e-3)
-    });
-    for (i, l) in g.lights.iter().enumerate() {
-        if l.flags & LIGHT_STAND_IN != 0 || mean(l.intensity) <= 0.0 {
-            continue;
-        }
-        let power = if l.kind == LIGHT_POINT { 4.0 * PI } else { PI * radius * radius };
-        entries.push((i as u32, EMITTER_LIGHT, mean(l.intensity) as f64 * power));
     }
     let total: f64 = entries.iter().map(|e| e.2).sum();
     if entries.is_empty() || total <= 0.0 || !total.is_finite() {
@@ -147,32 +138,39 @@ pub struct LightSample {
     /// Radiance (area emitters) or irradiance at normal incidence (point, directional)
     /// arriving, divided by `pdf`.
     pub value: V3<f32>,
-    /// Solid-angle density of this direction (area emitters, selection included), or the
-    /// selection probability of a point/directional light.
+    /// Solid-angle density of this direction (area emitters, selection included); 1 for a
+    /// point or directional light, which is not chosen (and which no other technique can
+    /// find: its MIS weight is 1).
     pub pdf: f32,
-    /// A point or directional light: no other technique can find it (MIS weight 1).
-    pub delta: bool,
 }
 
-/// Draws a light sample for shading point `p` from three uniform numbers; None when the
-/// sampled point faces away or the scene has no emitters.
+/// Point or directional light `l` seen from shading point `p`: its direction, distance and
+/// irradiance at normal incidence. None for a Whitted stand-in (path mode samples the
+/// emissive object itself) and for a point light at `p`.
+pub fn delta_light(l: &GpuLight, p: V3<f32>) -> Option<LightSample> {
+    if l.flags & LIGHT_STAND_IN != 0 {
+        return None;
+    }
+    let i = V3::from_array(l.intensity);
+    if l.kind == LIGHT_POINT {
+        let to = V3::from_array(l.vector) - p;
+        let d2 = to.dot(to);
+        if !(d2 > 0.0) {
+            return None;
+        }
+        let dist = d2.sqrt();
+        return Some(LightSample { dir: to / dist, dist, value: i / d2, pdf: 1.0 });
+    }
+    Some(LightSample { dir: -V3::from_array(l.vector), dist: f32::MAX, value: i, pdf: 1.0 })
+}
+
+/// Draws an area-light sample for shading point `p` from three uniform numbers; None when the
+/// sampled point faces away or the scene has no area emitters.
 pub fn sample(g: &GpuScene, frame: &GpuFrame, p: V3<f32>, u: [f32; 3]) -> Option<LightSample> {
     if frame.num_emitters == 0 {
         return None;
     }
     let e = &g.emitters[select(&g.emitters[..frame.num_emitters as usize], u[0])];
-    if e.kind == EMITTER_LIGHT {
-        let l = &g.lights[e.prim as usize];
-        let i = V3::from_array(l.intensity);
-        if l.kind == LIGHT_POINT {
-            let to = V3::from_array(l.vector) - p;
-            let d2 = to.dot(to);
-            let dist = d2.sqrt();
-            return Some(LightSample { dir: to / dist, dist, value: i / (d2 * e.pdf), pdf: e.pdf, delta: true });
-        }
-        let dir = -V3::from_array(l.vector);
-        return Some(LightSample { dir, dist: f32::MAX, value: i / e.pdf, pdf: e.pdf, delta: true });
-    }
     let r = PrimRef(e.prim);
     let (q, n, material) = match r.kind() {
         PrimKind::Triangle => {
@@ -202,7 +200,7 @@ pub fn sample(g: &GpuScene, frame: &GpuFrame, p: V3<f32>, u: [f32; 3]) -> Option
         return None;
     }
     let pdf = area_pdf(frame, m.radiance, d2, cos_l);
-    Some(LightSample { dir, dist, value: V3::from_array(m.radiance) / pdf, pdf, delta: false })
+    Some(LightSample { dir, dist, value: V3::from_array(m.radiance) / pdf, pdf })
 }
 
 /// The cosine at the emitter that counts: `cos` for one-sided emitters (≤ 0 from behind),

@@ -7,9 +7,16 @@
 //! k-th segment (by a BSDF sample or by a shadow ray) contributes while k ≤ max_depth, so 1
 //! shows emitters only and 2 is direct lighting.
 //!
-//! Both backends consume the random stream in the same order: at every vertex three numbers
-//! for the light sample (drawn even where unused), three for the BSDF, and one for Russian
-//! roulette when it applies.
+//! Point and directional lights are evaluated at every non-specular vertex, each with a
+//! shadow ray (see [`super::emitters`] for why they are not chosen by power); they use no
+//! random numbers. Both backends consume the random stream in the same order: at every vertex
+//! three numbers for the area-light sample (drawn even where unused), three for the BSDF, and
+//! one for Russian roulette when it applies; and add to a path's radiance in the same order:
+//! emission, point and directional lights, the area-light sample.
+//!
+//! The stages are those of `shaders/path_vertex.wgsl` ([`PathState`], [`shade_vertex`],
+//! [`NeeRay`]), which the GPU's megakernel (`path.wgsl`, like [`radiance`] here) and its
+//! wavefront tracer (`wavefront.wgsl`) both run.
 
 use super::bsdf::{self, is_specular};
 use super::camera::ray_through;
@@ -19,7 +26,7 @@ use super::shade::ShadeInputs;
 use super::spawn::spawn_origin;
 use crate::accel::wide_traverse;
 use crate::math::{Ray, V3};
-use crate::primitives::PrimKind;
+use crate::primitives::{Hit, PrimKind};
 use crate::scene::MaterialKind;
 
 /// Russian roulette may end a path once it has this many segments: Mitsuba's default
@@ -53,68 +60,135 @@ pub fn camera_ray(inp: &ShadeInputs, x: u32, y: u32, s: u32) -> Ray<f32> {
     ray_through(f, x, y, ox, oy)
 }
 
-/// Radiance arriving along `ray`, one path.
-pub fn radiance(inp: &ShadeInputs, mut ray: Ray<f32>, rng: &mut Sampler) -> V3<f32> {
+/// A path between vertices (`PathState` in `shaders/path_vertex.wgsl`).
+#[derive(Clone, Copy, Debug)]
+pub struct PathState {
+    pub ray: Ray<f32>,
+    /// The segment the next hit ends (1: the camera ray).
+    pub seg: u32,
+    pub beta: V3<f32>,
+    pub pdf_bsdf: f32,
+    pub sum: V3<f32>,
+    /// The last scattering was specular (or the path is at the camera).
+    pub specular: bool,
+}
+
+impl PathState {
+    pub fn new(ray: Ray<f32>) -> Self {
+        Self { ray, seg: 1, beta: V3::splat(1.0), pdf_bsdf: 0.0, sum: V3::zero(), specular: true }
+    }
+}
+
+/// A vertex's area-light sample (`NeeRay` in `shaders/path_vertex.wgsl`): the shadow ray, up to
+/// `dist`, and the radiance it adds to the path when nothing blocks it.
+#[derive(Clone, Copy, Debug)]
+pub struct NeeRay {
+    pub ray: Ray<f32>,
+    pub dist: f32,
+    pub value: V3<f32>,
+}
+
+/// Shades the vertex where segment `p.seg` of path `p` meets `hit` (`None`: the ray leaves the
+/// scene), as `shade_vertex` in `shaders/path_vertex.wgsl`: adds the emission there and each
+/// point and directional light to `p.sum`, returns the area-light sample in `nee` (for the
+/// caller to trace), samples the BSDF and plays Russian roulette. Returns whether the path goes
+/// on (`p` then holds its next ray).
+pub fn shade_vertex(
+    inp: &ShadeInputs,
+    p: &mut PathState,
+    hit: Option<&Hit<f32>>,
+    rng: &mut Sampler,
+    nee: &mut Option<NeeRay>,
+) -> bool {
     let (f, g) = (inp.frame, inp.gpu);
-    let mut beta = V3::splat(1.0f32);
-    let mut sum = V3::zero();
-    let mut specular = true;
-    let mut pdf_bsdf = 0.0f32;
-    for seg in 1..=f.max_depth {
-        let Some(hit) = wide_traverse::nearest(inp.wide, inp.prims, &ray, 0.0, f32::INFINITY) else {
-            sum += beta.mul_elem(V3::from_array(f.background));
-            break;
-        };
-        let m = &g.materials[hit.tag.material as usize];
-        let front = ray.dir.dot(hit.normal) < 0.0;
-        let ns = if front { hit.normal } else { -hit.normal };
-        if m.kind == MaterialKind::Emissive as u32 {
-            let cos_l = emitted_cos(m.flags, -ray.dir.dot(hit.normal));
-            if cos_l > 0.0 {
-                let sampled = matches!(hit.prim.kind(), PrimKind::Triangle | PrimKind::Sphere);
-                let w = if specular || !sampled {
-                    1.0
-                } else {
-                    power_heuristic(pdf_bsdf, area_pdf(f, m.radiance, hit.t * hit.t, cos_l))
-                };
-                sum += beta.mul_elem(V3::from_array(m.radiance)) * w;
+    *nee = None;
+    let ray = p.ray;
+    if p.seg > f.max_depth {
+        return false;
+    }
+    let Some(hit) = hit else {
+        p.sum += p.beta.mul_elem(V3::from_array(f.background));
+        return false;
+    };
+    let m = &g.materials[hit.tag.material as usize];
+    let front = ray.dir.dot(hit.normal) < 0.0;
+    let ns = if front { hit.normal } else { -hit.normal };
+    if m.kind == MaterialKind::Emissive as u32 {
+        let cos_l = emitted_cos(m.flags, -ray.dir.dot(hit.normal));
+        if cos_l > 0.0 {
+            let sampled = matches!(hit.prim.kind(), PrimKind::Triangle | PrimKind::Sphere);
+            let w = if p.specular || !sampled {
+                1.0
+            } else {
+                power_heuristic(p.pdf_bsdf, area_pdf(f, m.radiance, hit.t * hit.t, cos_l))
+            };
+            p.sum += p.beta.mul_elem(V3::from_array(m.radiance)) * w;
+        }
+    }
+    if p.seg == f.max_depth {
+        return false;
+    }
+    let wo = -ray.dir;
+    let u_light = uniform3(rng);
+    if !is_specular(m) {
+        let x = ray.at(hit.t);
+        let origin = spawn_origin(&ray, hit.t, ns);
+        for l in &g.lights[..f.num_lights as usize] {
+            let Some(ls) = emitters::delta_light(l, x) else { continue };
+            let (fc, _) = bsdf::eval(m, wo, ls.dir, ns);
+            if fc.max_component() > 0.0 && !occluded(inp, &Ray::new(origin, ls.dir), ls.dist * SHADOW_REACH) {
+                p.sum += p.beta.mul_elem(fc).mul_elem(ls.value);
             }
         }
-        if seg == f.max_depth {
-            break;
-        }
-        let wo = -ray.dir;
-        let u_light = uniform3(rng);
-        if !is_specular(m)
-            && let Some(ls) = emitters::sample(g, f, ray.at(hit.t), u_light)
-        {
+        if let Some(ls) = emitters::sample(g, f, x, u_light) {
             let (fc, pdf) = bsdf::eval(m, wo, ls.dir, ns);
             if fc.max_component() > 0.0 {
-                let origin = spawn_origin(&ray, hit.t, ns);
-                let shadow = Ray::new(origin, ls.dir);
-                if !wide_traverse::occluded(inp.wide, inp.prims, &shadow, 0.0, ls.dist * SHADOW_REACH) {
-                    let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
-                    sum += beta.mul_elem(fc).mul_elem(ls.value) * w;
-                }
+                let value = p.beta.mul_elem(fc).mul_elem(ls.value) * power_heuristic(ls.pdf, pdf);
+                *nee = Some(NeeRay { ray: Ray::new(origin, ls.dir), dist: ls.dist * SHADOW_REACH, value });
             }
         }
-        let Some(bs) = bsdf::sample(m, wo, ns, front, uniform3(rng)) else {
-            break;
-        };
-        beta = beta.mul_elem(bs.weight);
-        specular = bs.specular;
-        pdf_bsdf = bs.pdf;
-        if seg >= f.rr_depth {
-            let q = beta.max_component().min(0.95);
-            if rng.next_f32() >= q {
-                break;
-            }
-            beta = beta / q;
-        }
-        let side = if bs.dir.dot(hit.normal) >= 0.0 { hit.normal } else { -hit.normal };
-        ray = Ray::new(spawn_origin(&ray, hit.t, side), bs.dir);
     }
-    sum
+    let Some(bs) = bsdf::sample(m, wo, ns, front, uniform3(rng)) else {
+        return false;
+    };
+    p.beta = p.beta.mul_elem(bs.weight);
+    p.specular = bs.specular;
+    p.pdf_bsdf = bs.pdf;
+    if p.seg >= f.rr_depth {
+        let q = p.beta.max_component().min(0.95);
+        if rng.next_f32() >= q {
+            return false;
+        }
+        p.beta = p.beta / q;
+    }
+    let side = if bs.dir.dot(hit.normal) >= 0.0 { hit.normal } else { -hit.normal };
+    p.ray = Ray::new(spawn_origin(&ray, hit.t, side), bs.dir);
+    p.seg += 1;
+    true
+}
+
+/// Whether anything lies in (0, tmax) along the shadow ray.
+fn occluded(inp: &ShadeInputs, ray: &Ray<f32>, tmax: f32) -> bool {
+    wide_traverse::occluded(inp.wide, inp.prims, ray, 0.0, tmax)
+}
+
+/// Radiance arriving along `ray`, one path (the GPU's megakernel, `path.wgsl`): each vertex
+/// shaded, its area-light shadow ray traced at once.
+pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>, rng: &mut Sampler) -> V3<f32> {
+    let mut p = PathState::new(ray);
+    let mut nee = None;
+    loop {
+        let hit = wide_traverse::nearest(inp.wide, inp.prims, &p.ray, 0.0, f32::INFINITY);
+        let more = shade_vertex(inp, &mut p, hit.as_ref(), rng, &mut nee);
+        if let Some(n) = nee
+            && !occluded(inp, &n.ray, n.dist)
+        {
+            p.sum += n.value;
+        }
+        if !more {
+            return p.sum;
+        }
+    }
 }
 
 /// Radiance of sample `s` of pixel (x, y); a non-finite sample (which a valid scene never

@@ -4,9 +4,9 @@ use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    /// The file could not be read.
-    #[error("{path}: cannot read scene file: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    /// The file could not be read (missing, unreadable, too large, not UTF-8 text).
+    #[error("{path}: cannot read scene file: {message}")]
+    Io { path: PathBuf, message: String },
     /// A syntax, type or validation error at a place in the file.
     #[error("{path}:{line}:{column}: {field}: {message}")]
     At { path: PathBuf, line: usize, column: usize, field: String, message: String },

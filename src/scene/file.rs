@@ -30,13 +30,17 @@ pub const MAX_MATERIALS: usize = 4096;
 pub const MAX_LIGHTS: usize = 1024;
 /// Most triangles (triangles, polygons and meshes together) in one scene.
 pub const MAX_SCENE_TRIANGLES: usize = 64_000_000;
+/// Largest scene file read: a million small objects take about 70 MB of TOML (and parsing
+/// needs some 40 bytes of memory per byte of it).
+pub const MAX_SCENE_FILE_BYTES: u64 = 256 << 20;
 pub const MAX_DEPTH: i64 = 64;
 pub const MAX_SPP: i64 = 65536;
 
 /// Reads and validates the scene file at `path`; relative mesh paths are resolved against
 /// the file's directory.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let src = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    let src = crate::input::read_text(path, MAX_SCENE_FILE_BYTES)
+        .map_err(|e| SceneError::Io { path: path.to_path_buf(), message: e.to_string() })?;
     let base_dir = path.parent().unwrap_or(Path::new(""));
     parse(&src, path, base_dir)
 }
@@ -45,6 +49,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 /// mesh files are looked up relative to `base_dir`.
 pub fn parse(src: &str, path: &Path, base_dir: &Path) -> Result<Scene, SceneError> {
     let cx = Cx { src, path, base_dir };
+    cx.prescan_counts()?;
     let def: SceneDef = toml::from_str(src).map_err(|e| {
         // Only on error is the document parsed again, to name the field at the error's span
         // (a syntax error fails this parse too and is reported as such).
@@ -210,6 +215,9 @@ impl<'de> Deserialize<'de> for ScaleDef {
     }
 }
 
+const LIGHT_TYPES: [(&str, &[&str]); 2] =
+    [("point", &["position", "intensity"]), ("directional", &["direction", "intensity"])];
+
 const OBJECT_TYPES: [(&str, &[&str]); 6] = [
     ("sphere", &["center", "radius", "material"]),
     ("cylinder", &["p1", "p2", "radius", "caps", "material"]),
@@ -275,8 +283,62 @@ impl Cx<'_> {
                 if field.is_empty() { "toml".to_string() } else { field }
             }
         };
+        let message = doc.and_then(|doc| unknown_key_of_type(doc.get_ref(), &field, &message)).unwrap_or(message);
         self.at(span, field, message)
     }
+
+    /// Refuses a file with more `[[objects]]`, `[[materials]]` or `[[lights]]` tables than
+    /// accepted by counting their headers, before the document is parsed (parsing a million
+    /// objects takes seconds and gigabytes). Lists written inline (`objects = [...]`) are
+    /// counted after parsing.
+    fn prescan_counts(&self) -> Res<()> {
+        let limits = [("objects", MAX_OBJECTS), ("materials", MAX_MATERIALS), ("lights", MAX_LIGHTS)];
+        let mut counts = [0usize; 3];
+        for (i, line) in self.src.lines().enumerate() {
+            let t = line.trim();
+            let Some(inner) = t.strip_prefix("[[").and_then(|t| t.split_once("]]")).map(|(k, _)| k) else {
+                continue;
+            };
+            let key = inner.trim().trim_matches('"');
+            if let Some(k) = limits.iter().position(|(name, _)| *name == key) {
+                counts[k] += 1;
+                let (name, max) = limits[k];
+                if counts[k] > max {
+                    return Err(self.too_large(format!(
+                        "too many {name}: more than {max} ([[{name}]] table number {} is on line {})",
+                        counts[k],
+                        i + 1
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// For "unknown field `k`, expected one of ..." in `objects[i]` or `lights[i]`: the keys of
+/// that object's or light's own type (serde lists every key of every type).
+fn unknown_key_of_type(doc: &toml::de::DeTable, field: &str, message: &str) -> Option<String> {
+    let key = message.strip_prefix("unknown field `")?.split('`').next()?;
+    let (list, rest) = field.split_once('[')?;
+    let index: usize = rest.split_once(']')?.0.parse().ok()?;
+    let entry = match doc.get(list)?.get_ref() {
+        toml::de::DeValue::Array(a) => a.get(index)?,
+        _ => return None,
+    };
+    let toml::de::DeValue::Table(t) = entry.get_ref() else { return None };
+    let type_name = match t.get("type")?.get_ref() {
+        toml::de::DeValue::String(s) => s.to_string(),
+        _ => return None,
+    };
+    let keys: &[&str] = match list {
+        "objects" => OBJECT_TYPES.iter().find(|(t, _)| *t == type_name)?.1,
+        "lights" => LIGHT_TYPES.iter().find(|(t, _)| *t == type_name)?.1,
+        _ => return None,
+    };
+    let what = if list == "lights" { format!("{type_name} light") } else { type_name };
+    let known: Vec<String> = std::iter::once("type").chain(keys.iter().copied()).map(|k| format!("`{k}`")).collect();
+    Some(format!("unknown key `{key}` for a {what}; it takes {}", known.join(", ")))
 }
 
 fn join(path: &str, key: &str) -> String {
@@ -486,7 +548,7 @@ impl Cx<'_> {
         let mut objects = Vec::with_capacity(def.objects.len());
         for (i, o) in def.objects.iter().enumerate() {
             let field = format!("objects[{i}]");
-            let geometry = self.object(o, &field)?;
+            let geometry = self.object(o, &field, MAX_SCENE_TRIANGLES - triangles)?;
             let material = match &o.get_ref().material {
                 Some(name) => match by_name.get(name.get_ref().as_str()) {
                     Some(&m) => m as u32,
@@ -728,7 +790,8 @@ impl Cx<'_> {
         }
     }
 
-    fn object(&self, o: &Spanned<ObjectDef>, field: &str) -> Res<Geometry> {
+    /// Object `o`; a mesh may add at most `triangle_budget` triangles to the scene.
+    fn object(&self, o: &Spanned<ObjectDef>, field: &str, triangle_budget: usize) -> Res<Geometry> {
         let d = o.get_ref();
         let tname = d.kind.get_ref().as_str();
         let Some((_, allowed)) = OBJECT_TYPES.iter().find(|(t, _)| *t == tname) else {
@@ -859,7 +922,10 @@ impl Cx<'_> {
                     t.scale = self.scale(s, &f("scale"))?;
                 }
                 let mesh_path = self.base_dir.join(file.get_ref());
-                let triangles = mesh::load_obj(&mesh_path, &t).map_err(|message| {
+                let triangles = mesh::load_obj(&mesh_path, &t, triangle_budget).map_err(|mut message| {
+                    if triangle_budget < mesh::MAX_MESH_TRIANGLES {
+                        message += &format!(" (a scene holds at most {MAX_SCENE_TRIANGLES} triangles in all)");
+                    }
                     let (line, column) = self.line_col(file.span().start);
                     SceneError::Mesh {
                         path: self.path.to_path_buf(),
@@ -981,7 +1047,15 @@ mod tests {
     #[test]
     fn toml_errors_name_the_field() {
         let e = err(&format!("{HEAD}[[objects]]\ntype = \"sphere\"\nradiuss = 1\n"));
-        assert!(e.starts_with("t.toml:11:1: objects[0].radiuss: unknown field `radiuss`"), "{e}");
+        assert_eq!(
+            e,
+            "t.toml:11:1: objects[0].radiuss: unknown key `radiuss` for a sphere; it takes `type`, `center`, `radius`, \
+             `material`"
+        );
+        let e = err(&format!("{HEAD}[[lights]]\ntype = \"directional\"\ndirecton = [0, -1, 0]\n"));
+        assert!(
+            e.ends_with("unknown key `directon` for a directional light; it takes `type`, `direction`, `intensity`")
+        );
         let e = err(&format!("{HEAD}[[objects]]\ntype = \"sphere\"\nradius = \"big\"\n"));
         assert!(e.starts_with("t.toml:11:10: objects[0].radius: invalid type"), "{e}");
         assert!(e.contains("expected a number"), "{e}");

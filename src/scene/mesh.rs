@@ -8,6 +8,9 @@ use std::path::Path;
 
 /// The most triangles one mesh file may hold.
 pub const MAX_MESH_TRIANGLES: usize = 16_000_000;
+/// Largest mesh file read (16 million triangles with their vertices take about 700 MB of
+/// OBJ text; texture and normal indices add more).
+pub const MAX_MESH_FILE_BYTES: u64 = 2 << 30;
 
 /// Placement of a mesh: scale, then rotate about X, then Y, then Z (degrees, right-handed),
 /// then translate.
@@ -52,12 +55,36 @@ impl Transform {
     }
 }
 
+/// Triangles the faces of an OBJ text fan into, counted from its `f` lines alone, up to the
+/// first count above `limit` (then the file is refused without being parsed).
+fn face_triangles(text: &str, limit: usize) -> usize {
+    let mut count = 0usize;
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        if words.next() == Some("f") {
+            count += words.count().saturating_sub(2);
+            if count > limit {
+                break;
+            }
+        }
+    }
+    count
+}
+
 /// Loads every face of every model in an OBJ file as triangles (polygons are fanned by
-/// tobj), placed by `transform`. A mirroring transform (negative scale product) swaps
-/// each triangle's last two vertices so front faces stay front faces.
-pub fn load_obj(path: &Path, transform: &Transform) -> Result<Vec<Triangle<f64>>, String> {
-    let file = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
-    let mut reader = BufReader::new(file);
+/// tobj), placed by `transform`; at most `limit` (≤ [`MAX_MESH_TRIANGLES`]) triangles, checked
+/// before the file is parsed. A mirroring transform (negative scale product) swaps each
+/// triangle's last two vertices so front faces stay front faces.
+pub fn load_obj(path: &Path, transform: &Transform, limit: usize) -> Result<Vec<Triangle<f64>>, String> {
+    let limit = limit.min(MAX_MESH_TRIANGLES);
+    let text = crate::input::read_text(path, MAX_MESH_FILE_BYTES).map_err(|e| match e {
+        crate::input::ReadError::Io(e) => format!("cannot open: {e}"),
+        e => format!("cannot read: {e}"),
+    })?;
+    if face_triangles(&text, limit) > limit {
+        return Err(format!("more than {limit} triangles, the most accepted here"));
+    }
+    let mut reader = BufReader::new(text.as_bytes());
     // The struct update keeps this compiling if tobj's optional fields are switched on.
     #[allow(clippy::needless_update)]
     let options = tobj::LoadOptions {
@@ -89,8 +116,8 @@ pub fn load_obj(path: &Path, transform: &Transform) -> Result<Vec<Triangle<f64>>
     if count == 0 {
         return Err("no faces".into());
     }
-    if count > MAX_MESH_TRIANGLES {
-        return Err(format!("{count} triangles exceed the limit of {MAX_MESH_TRIANGLES}"));
+    if count > limit {
+        return Err(format!("{count} triangles exceed the limit of {limit}"));
     }
 
     let mirror = transform.mirrors();
@@ -229,7 +256,7 @@ mod tests {
         let path = dir.path().join("t.obj");
         std::fs::write(&path, &buf).unwrap();
         let t = Transform { translate: [1.0, 0.0, 0.0], ..Default::default() };
-        let tris = load_obj(&path, &t).unwrap();
+        let tris = load_obj(&path, &t, MAX_MESH_TRIANGLES).unwrap();
         assert_eq!(tris.len(), f.len());
         for (tri, face) in tris.iter().zip(&f) {
             for k in 0..3 {
@@ -245,11 +272,11 @@ mod tests {
         let path = dir.path().join("tri.obj");
         std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
         let t = Transform { scale: [-1.0, 1.0, 1.0], ..Default::default() };
-        let tris = load_obj(&path, &t).unwrap();
+        let tris = load_obj(&path, &t, MAX_MESH_TRIANGLES).unwrap();
         assert!(tris[0].face_normal().z > 0.0);
         // Quads are split into two triangles.
         std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n").unwrap();
-        assert_eq!(load_obj(&path, &Transform::default()).unwrap().len(), 2);
+        assert_eq!(load_obj(&path, &Transform::default(), MAX_MESH_TRIANGLES).unwrap().len(), 2);
     }
 
     #[test]
@@ -258,7 +285,7 @@ mod tests {
         let path = dir.path().join("bad.obj");
         let err = |src: &str| {
             std::fs::write(&path, src).unwrap();
-            load_obj(&path, &Transform::default()).unwrap_err()
+            load_obj(&path, &Transform::default(), MAX_MESH_TRIANGLES).unwrap_err()
         };
         assert!(err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").contains("out of"));
         assert!(err("v 0 0 0\nv 1 0 0\nv 0 1 0\n").contains("no faces"));
@@ -266,7 +293,13 @@ mod tests {
         assert!(err("v 0 0 inf\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").contains("not finite"));
         assert!(err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -9223372036854775808\n").contains("OBJ"));
         assert!(err("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n").contains("out of"));
+        // Counted from the face lines before parsing: a quad is two triangles.
+        std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf 1 2 3\n").unwrap();
+        let e = load_obj(&path, &Transform::default(), 2).unwrap_err();
+        assert!(e.contains("more than 2 triangles"), "{e}");
+        assert_eq!(load_obj(&path, &Transform::default(), 3).unwrap().len(), 3);
+        assert!(err("\0").contains("not a text file"));
         let missing = dir.path().join("nope.obj");
-        assert!(load_obj(&missing, &Transform::default()).unwrap_err().contains("cannot open"));
+        assert!(load_obj(&missing, &Transform::default(), MAX_MESH_TRIANGLES).unwrap_err().contains("cannot open"));
     }
 }

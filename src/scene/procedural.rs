@@ -97,7 +97,7 @@ pub fn obj_scene(path: &Path) -> Result<Scene, SceneError> {
         mesh: path.to_path_buf(),
         message,
     };
-    let triangles = mesh::load_obj(path, &Transform::default()).map_err(mesh_err)?;
+    let triangles = mesh::load_obj(path, &Transform::default(), mesh::MAX_MESH_TRIANGLES).map_err(mesh_err)?;
     let (lo, hi) = bounds(&triangles);
     let cam_path = camera_file(path);
     let (camera, aspect) =
@@ -114,7 +114,8 @@ pub fn camera_file(obj: &Path) -> PathBuf {
 
 fn read_camera(path: &Path) -> Result<(Camera, f64), SceneError> {
     let too_bad = |message: String| SceneError::File { path: path.to_path_buf(), message };
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    // A camera file is a few hundred bytes; a larger one is not one.
+    let text = crate::input::read_text(path, 1 << 16).map_err(|e| too_bad(format!("cannot read camera file: {e}")))?;
     let c: CameraFile = serde_json::from_str(&text).map_err(|e| too_bad(format!("camera file: {e}")))?;
     let v = |a: [f64; 3]| V3::new(a[0], a[1], a[2]);
     let (eye, look_at, up) = (v(c.eye), v(c.look_at), v(c.up));

@@ -751,6 +751,42 @@ intensity = [300, 300, 300]
     crate::scene::file::parse(&text, std::path::Path::new("far.toml"), std::path::Path::new(".")).expect("valid scene")
 }
 
+/// `scene` with every position and length multiplied by `s`: the camera, the objects and the
+/// point lights, whose intensities are multiplied by s² so that the irradiance they give is
+/// unchanged (emissive radiance and directional irradiance do not depend on the scale). Up to
+/// rounding it renders the same image at any scale.
+pub fn scaled(scene: &Scene, s: f64) -> Scene {
+    use crate::scene::{Geometry, Light};
+    let tri = |t: &Triangle<f64>| Triangle { v: t.v.map(|p| p * s) };
+    let mut out = scene.clone();
+    out.camera.eye = scene.camera.eye * s;
+    out.camera.look_at = scene.camera.look_at * s;
+    for o in &mut out.objects {
+        o.geometry = match &o.geometry {
+            Geometry::Sphere(sp) => Geometry::Sphere(Sphere { center: sp.center * s, radius: sp.radius * s }),
+            Geometry::Cylinder(c) => {
+                Geometry::Cylinder(Cylinder { p1: c.p1 * s, p2: c.p2 * s, radius: c.radius * s, ..*c })
+            }
+            Geometry::Plane(p) => Geometry::Plane(crate::geometry::Plane { point: p.point * s, normal: p.normal }),
+            Geometry::Triangle(t) => Geometry::Triangle(tri(t)),
+            Geometry::Polygon { vertices, triangles } => Geometry::Polygon {
+                vertices: vertices.iter().map(|&v| v * s).collect(),
+                triangles: triangles.iter().map(tri).collect(),
+            },
+            Geometry::Mesh { file, triangles } => {
+                Geometry::Mesh { file: file.clone(), triangles: triangles.iter().map(tri).collect() }
+            }
+        };
+    }
+    for l in &mut out.lights {
+        if let Light::Point { position, intensity } = l {
+            *position = *position * s;
+            *intensity = intensity.map(|i| i * s * s);
+        }
+    }
+    out
+}
+
 /// Acne (a lit pixel rendered much darker: the surface shadows itself) and holes (background
 /// where there is geometry, or the reverse) of a render against the reference.
 pub fn acne_and_holes(reference: &crate::image::Image, test: &crate::image::Image, background: [f32; 3]) -> usize {
@@ -767,6 +803,25 @@ pub fn acne_and_holes(reference: &crate::image::Image, test: &crate::image::Imag
         .count()
 }
 
+/// The Whitted image of `prep` on the robust `variant` (None for the textbook one, which
+/// renders nothing).
+fn render_on(
+    variant: Variant,
+    prep: &crate::render::Prepared,
+    frame: &crate::gpu_types::GpuFrame,
+    opt: &Options,
+) -> Result<Option<crate::image::Image>, GpuError> {
+    Ok(match variant {
+        Variant::Cpu => Some(crate::backend::cpu::render(prep, frame, RenderMode::Whitted, &|_| {})),
+        Variant::Gpu => {
+            let ctx = opt.gpu.expect("gpu");
+            let b = SceneBuffers::upload(ctx, &prep.gpu)?;
+            Some(crate::backend::gpu::render::render(ctx, &b, frame, RenderMode::Whitted, b.key, &|_, _| {})?.0)
+        }
+        Variant::Textbook => None,
+    })
+}
+
 /// The scene translated by 1e5 must render as it does at the origin: no acne, no holes.
 pub fn far_from_origin(opt: &Options) -> Result<Vec<Row>, GpuError> {
     let near = crate::render::Prepared::new(scene_at(0.0));
@@ -778,15 +833,7 @@ pub fn far_from_origin(opt: &Options) -> Result<Vec<Row>, GpuError> {
     let mut rows = Vec::new();
     for variant in opt.variants() {
         let start = Instant::now();
-        let img = match variant {
-            Variant::Cpu => crate::backend::cpu::render(&far, &frame_far, RenderMode::Whitted, &|_| {}),
-            Variant::Gpu => {
-                let ctx = opt.gpu.expect("gpu");
-                let b = SceneBuffers::upload(ctx, &far.gpu)?;
-                crate::backend::gpu::render::render(ctx, &b, &frame_far, RenderMode::Whitted, b.key, &|_, _| {})?.0
-            }
-            Variant::Textbook => continue,
-        };
+        let Some(img) = render_on(variant, &far, &frame_far, opt)? else { continue };
         rows.push(Row {
             case: "scene translated by 1e5 (160x120 render vs at the origin)".into(),
             variant: Some(variant),
@@ -796,6 +843,44 @@ pub fn far_from_origin(opt: &Options) -> Result<Vec<Row>, GpuError> {
             ns_per_ray: start.elapsed().as_nanos() as f64 / (160.0 * 120.0),
             ..Row::default()
         });
+    }
+    Ok(rows)
+}
+
+/// Pixels of two images whose 8-bit sRGB codes differ by more than `codes` in some channel.
+pub fn pixels_off_by_more_than(a: &crate::image::Image, b: &crate::image::Image, codes: u8) -> usize {
+    let (a, b) = (a.to_srgb8(), b.to_srgb8());
+    a.chunks(3).zip(b.chunks(3)).filter(|(p, q)| p.iter().zip(q.iter()).any(|(x, y)| x.abs_diff(*y) > codes)).count()
+}
+
+/// Scales of [`scaled_scenes`].
+pub const SCALES: [f64; 4] = [1e-6, 1e-3, 1e3, 1e6];
+
+/// The scene of [`far_from_origin`] scaled by 10⁻⁶ … 10⁶ (camera, objects and light
+/// together, [`scaled`]) must render as at scale 1: a fail is a pixel more than 2 codes off,
+/// or not finite. Fixed offsets near the origin made the small scales lose shadows and
+/// reflections (and glass, in the seed scene).
+pub fn scaled_scenes(opt: &Options) -> Result<Vec<Row>, GpuError> {
+    let (w, h) = (160, 120);
+    let base = crate::render::Prepared::new(scene_at(0.0));
+    let reference = crate::backend::cpu::render(&base, &base.frame(w, h), RenderMode::Whitted, &|_| {});
+    let mut rows = Vec::new();
+    for s in SCALES {
+        let prep = crate::render::Prepared::new(scaled(&base.scene, s));
+        let frame = prep.frame(w, h);
+        for variant in opt.variants() {
+            let start = Instant::now();
+            let Some(img) = render_on(variant, &prep, &frame, opt)? else { continue };
+            rows.push(Row {
+                case: format!("scene scaled by {s:e} ({w}x{h} render vs at scale 1)"),
+                variant: Some(variant),
+                rays: (w * h) as usize,
+                fails: pixels_off_by_more_than(&reference, &img, 2) + img.non_finite_count(),
+                fail_kind: "pixels > 2 codes off",
+                ns_per_ray: start.elapsed().as_nanos() as f64 / (w * h) as f64,
+                ..Row::default()
+            });
+        }
     }
     Ok(rows)
 }
@@ -826,5 +911,6 @@ pub fn run_all(opt: &Options) -> Result<Vec<Row>, GpuError> {
     rows.extend(closed_mesh_leaks(opt.n(10_000_000).max(1000), opt, &mut rng)?);
     rows.extend(thin_triangles(opt.n(1000).max(8), 100, opt, &mut rng)?);
     rows.extend(far_from_origin(opt)?);
+    rows.extend(scaled_scenes(opt)?);
     Ok(rows)
 }

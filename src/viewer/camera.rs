@@ -72,11 +72,13 @@ impl ViewCamera {
         self.target += shift;
     }
 
-    /// Moves the eye towards the target: the distance is multiplied by `factor`.
+    /// Moves the eye towards the target: the distance is multiplied by `factor` (at least
+    /// 10⁻⁶, so the eye never reaches the target; no fixed floor, so a scene 10⁻⁶ units across
+    /// can be approached as closely as one 1 unit across).
     pub fn zoom(&mut self, factor: f64) {
         let offset = self.eye - self.target;
         let dist = offset.length();
-        let new_dist = (dist * factor).max(1e-6 * dist.max(1.0));
+        let new_dist = dist * factor.max(1e-6);
         self.eye = self.target + offset * (new_dist / dist);
     }
 
@@ -126,6 +128,11 @@ mod tests {
         let mut c = cam();
         c.zoom(0.5);
         assert!((c.distance() - 2.5).abs() < 1e-9 && c.target == V3::zero());
+        // Zooming is relative at every scale: from 5 to 5e-9 in three steps.
+        for _ in 0..3 {
+            c.zoom(1e-3);
+        }
+        assert!((c.distance() / 2.5e-9 - 1.0).abs() < 1e-9, "{}", c.distance());
         let mut c = cam();
         c.fly(1.0, 2.0, 3.0);
         assert_eq!(c.eye, V3::new(2.0, 3.0, -4.0));

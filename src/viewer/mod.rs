@@ -423,7 +423,7 @@ impl Viewer {
         }
     }
 
-    /// The frame uniforms of the current view at `w`×`h` (one sample per pass).
+    /// The frame parameters of the current view at `w`×`h` (one sample per pass).
     fn frame(&self, w: u32, h: u32) -> GpuFrame {
         let mut f = self.prep.frame(w, h);
         let c = crate::render::camera::frame(&self.camera.to_camera(), w, h);
@@ -456,7 +456,7 @@ impl Viewer {
                         (corner - eye).length()
                     })
                     .fold(0.0, f64::max);
-                (near as f32, far.max(near + 1e-6) as f32)
+                (near as f32, far.max(near * (1.0 + 1e-6)).max(f64::from(f32::MIN_POSITIVE)) as f32)
             }
             None => (0.0, (10.0 * self.camera.distance()) as f32),
         }
@@ -493,7 +493,8 @@ impl Viewer {
             (i.unstable_dt.min(0.1) as f64, down, i.modifiers.shift, i.key_pressed(Key::R))
         });
         if down != [0.0; 3] {
-            let speed = self.camera.distance().max(1e-3) * 0.6 * if fast { 4.0 } else { 1.0 } * dt;
+            // In scene units per second, relative to the view: a scene's scale does not matter.
+            let speed = self.camera.distance() * 0.6 * if fast { 4.0 } else { 1.0 } * dt;
             self.camera.fly(down[0] * speed, down[1] * speed, down[2] * speed);
             ctx.request_repaint();
         }
@@ -631,11 +632,10 @@ impl Viewer {
         let path = PathBuf::from(self.save_path.trim());
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         let result: Result<()> = match ext.as_deref() {
-            Some("png") => self
-                .gpu
-                .read_display()
-                .map_err(anyhow::Error::from)
-                .and_then(|img| Ok(image::DynamicImage::ImageRgba8(img).to_rgb8().save(&path)?)),
+            Some("png") => self.gpu.read_display().map_err(anyhow::Error::from).and_then(|img| {
+                let rgb = image::DynamicImage::ImageRgba8(img).to_rgb8();
+                crate::image::save_encoded(&rgb, image::ImageFormat::Png, &path)
+            }),
             Some("exr") => self.gpu.read_mean().map_err(anyhow::Error::from).and_then(|img| img.save(&path)),
             _ => Err(anyhow!("use a .png (what the window shows) or .exr (linear values) file name")),
         };
@@ -909,10 +909,8 @@ fn diff_colour(d: u8) -> [u8; 3] {
 fn save_screenshot(img: &egui::ColorImage, path: &Path) -> Result<()> {
     let [w, h] = img.size;
     let rgb: Vec<u8> = img.pixels.iter().flat_map(|c| [c.r(), c.g(), c.b()]).collect();
-    image::RgbImage::from_raw(w as u32, h as u32, rgb)
-        .context("screenshot size")?
-        .save(path)
-        .with_context(|| format!("writing {}", path.display()))
+    let img = image::RgbImage::from_raw(w as u32, h as u32, rgb).context("screenshot size")?;
+    crate::image::save_encoded(&img, image::ImageFormat::Png, path)
 }
 
 impl eframe::App for Viewer {

@@ -5,10 +5,13 @@
 
 pub mod render;
 pub mod shaders;
+pub mod shared;
 pub mod trace;
+pub mod wavefront;
 
 pub use shaders::{FeatureKey, Program};
 
+use crate::accel::gpu_bvh::MAX_PRIMS;
 use crate::gpu_types::{GpuFrame, GpuScene};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -29,9 +32,30 @@ pub enum GpuError {
     Shader(#[from] shaders::ShaderError),
     #[error("{what} needs {need} bytes, more than this adapter allows in one buffer ({limit} bytes)")]
     TooLarge { what: String, need: u64, limit: u64 },
+    #[error("the scene has {count} spheres, cylinders and triangles; the GPU's BVH layout indexes at most {limit}")]
+    TooManyPrimitives { count: usize, limit: usize },
     #[error("GPU error: {0}")]
     Wgpu(String),
 }
+
+/// Storage buffers a stage binds: the scene's 11 and the trace program's 3 (the wavefront path
+/// tracer needs [`wavefront::BINDINGS`] more than the scene's; see
+/// [`GpuContext::has_wavefront`]).
+const MIN_STORAGE_BUFFERS: u32 = SCENE_BINDINGS + 3;
+/// Bindings of group 0: the frame and the scene's buffers.
+const SCENE_BINDINGS: u32 = 11;
+
+/// How path tracing runs on a device: one kernel per sample pass that follows each path to its
+/// end (`path.wgsl`), or separate kernels over queues of paths (`wavefront.wgsl`, see
+/// [`wavefront`]). Both compute the same image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathKernels {
+    Megakernel,
+    Wavefront,
+}
+
+/// The environment variable that overrides [`GpuContext::path_kernels`].
+pub const PATH_KERNELS_VAR: &str = "STRAHL_PATH_KERNELS";
 
 /// A pipeline is specialised by its program, the scene's features and its entry point.
 type PipelineKey = (Program, FeatureKey, &'static str);
@@ -39,6 +63,8 @@ type PipelineKey = (Program, FeatureKey, &'static str);
 /// A compiled pipeline and what compiling it cost.
 pub struct CachedPipeline {
     pub pipeline: wgpu::ComputePipeline,
+    /// The variant compiled: the scene's key with the device's flags ([`FeatureKey::DEVICE`]).
+    pub key: FeatureKey,
     /// Composition (naga_oil) plus pipeline creation (driver compile).
     pub compile_time: Duration,
 }
@@ -50,9 +76,12 @@ pub struct GpuContext {
     pub limits: wgpu::Limits,
     /// Whether per-dispatch timestamp queries are available.
     pub timestamps: bool,
+    /// [`FeatureKey::DEVICE`] flags this device supports, added to every pipeline's key.
+    pub device_flags: u32,
     scene_layout: wgpu::BindGroupLayout,
     render_layout: wgpu::BindGroupLayout,
     trace_layout: wgpu::BindGroupLayout,
+    wavefront_layout: wgpu::BindGroupLayout,
     pipelines: Mutex<HashMap<PipelineKey, Arc<CachedPipeline>>>,
 }
 
@@ -90,7 +119,8 @@ impl GpuContext {
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         wgpu::DeviceDescriptor {
             label: Some("strahl"),
-            required_features: if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() },
+            required_features: (if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() })
+                | (adapter.features() & wgpu::Features::SHADER_INT64),
             required_limits: adapter.limits(),
             ..Default::default()
         }
@@ -109,25 +139,17 @@ impl GpuContext {
         adapter_info: wgpu::AdapterInfo,
     ) -> Result<Self, GpuError> {
         let limits = device.limits();
-        if limits.max_storage_buffers_per_shader_stage < 12 {
+        if limits.max_storage_buffers_per_shader_stage < MIN_STORAGE_BUFFERS {
             return Err(GpuError::Device(format!(
-                "strahl needs 12 storage buffers per shader stage, this device offers {}",
+                "strahl needs {MIN_STORAGE_BUFFERS} storage buffers per shader stage, this device offers {}",
                 limits.max_storage_buffers_per_shader_stage
             )));
         }
         let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let uniform = wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let mut scene_entries = vec![uniform];
-        scene_entries.extend((1..=9).map(|b| storage_entry(b, true)));
+        let device_flags =
+            if device.features().contains(wgpu::Features::SHADER_INT64) { FeatureKey::LOAD64 } else { 0 };
+        // Binding 0 is the frame: storage, not uniform (see shaders/bindings.wgsl).
+        let scene_entries: Vec<_> = (0..SCENE_BINDINGS).map(|b| storage_entry(b, true)).collect();
         let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),
             entries: &scene_entries,
@@ -140,15 +162,22 @@ impl GpuContext {
             label: Some("trace io"),
             entries: &[storage_entry(0, true), storage_entry(1, false), storage_entry(2, false)],
         });
+        let wavefront_entries: Vec<_> = (0..wavefront::BINDINGS).map(|b| storage_entry(b, false)).collect();
+        let wavefront_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("wavefront queues"),
+            entries: &wavefront_entries,
+        });
         Ok(Self {
             device,
             queue,
             adapter_info,
             limits,
             timestamps,
+            device_flags,
             scene_layout,
             render_layout,
             trace_layout,
+            wavefront_layout,
             pipelines: Mutex::new(HashMap::new()),
         })
     }
@@ -166,7 +195,7 @@ impl GpuContext {
         key: FeatureKey,
         entry: &'static str,
     ) -> Result<Arc<CachedPipeline>, GpuError> {
-        let key = key.for_program(program);
+        let key = self.variant(program, key);
         if let Some(p) = self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)) {
             return Ok(p.clone());
         }
@@ -180,6 +209,7 @@ impl GpuContext {
         let io_layout = match program {
             Program::Render | Program::Path | Program::View => &self.render_layout,
             Program::Trace => &self.trace_layout,
+            Program::Wavefront => &self.wavefront_layout,
         };
         let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(entry),
@@ -194,7 +224,7 @@ impl GpuContext {
             compilation_options: Default::default(),
             cache: None,
         });
-        let cached = Arc::new(CachedPipeline { pipeline, compile_time: start.elapsed() });
+        let cached = Arc::new(CachedPipeline { pipeline, key, compile_time: start.elapsed() });
         self.pipelines.lock().expect("pipeline cache lock").insert((program, key, entry), cached.clone());
         Ok(cached)
     }
@@ -206,8 +236,44 @@ impl GpuContext {
         key: FeatureKey,
         entry: &'static str,
     ) -> Option<Arc<CachedPipeline>> {
-        let key = key.for_program(program);
+        let key = self.variant(program, key);
         self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)).cloned()
+    }
+
+    /// The path tracer this device runs best, as measured (`strahl bench` times both): on
+    /// lavapipe before Mesa 25, which executes both sides of every branch for all eight lanes of
+    /// its SIMD programs, the wavefront tracer, whose kernels carry only the code of their stage
+    /// (Mesa 22.3.6: 1.6x the megakernel's samples per second on the seed scene); everywhere
+    /// else the megakernel (Mesa 25.0.7, which skips branches no lane takes: 2.2x the wavefront
+    /// tracer's; no other device measured yet). The environment variable
+    /// [`PATH_KERNELS_VAR`] (`megakernel` or `wavefront`) overrides the choice.
+    pub fn path_kernels(&self) -> Result<PathKernels, GpuError> {
+        if let Some(v) = std::env::var_os(PATH_KERNELS_VAR) {
+            return match v.to_str() {
+                Some("megakernel") => Ok(PathKernels::Megakernel),
+                Some("wavefront") if self.has_wavefront() => Ok(PathKernels::Wavefront),
+                Some("wavefront") => Err(GpuError::Device(format!(
+                    "{PATH_KERNELS_VAR}=wavefront: this device binds too few storage buffers per stage for it"
+                ))),
+                _ => Err(GpuError::Device(format!(
+                    "{PATH_KERNELS_VAR} must be megakernel or wavefront, not {}",
+                    v.to_string_lossy()
+                ))),
+            };
+        }
+        let info = &self.adapter_info;
+        let old_lavapipe = info.driver == "llvmpipe" && mesa_major(&info.driver_info).is_some_and(|m| m < 25);
+        Ok(if old_lavapipe && self.has_wavefront() { PathKernels::Wavefront } else { PathKernels::Megakernel })
+    }
+
+    /// Whether this device binds enough storage buffers per stage for the wavefront path tracer.
+    pub fn has_wavefront(&self) -> bool {
+        self.limits.max_storage_buffers_per_shader_stage >= SCENE_BINDINGS + wavefront::BINDINGS
+    }
+
+    /// The variant of `program` this device compiles for a scene needing `key`.
+    pub fn variant(&self, program: Program, key: FeatureKey) -> FeatureKey {
+        FeatureKey(key.for_program(program).0 & !FeatureKey::DEVICE | self.device_flags)
     }
 
     /// The output bind group (group 1) of the render and view programs over `buffer`, an
@@ -250,8 +316,18 @@ impl GpuContext {
         }))
     }
 
-    /// Copies `size` bytes of `src` to the host (blocking).
+    /// Copies the first `count` elements of `src`, an array of `T`, to the host (blocking).
+    /// The bytes land in a `Vec<T>`, aligned for `T`; `count` may be 0.
+    pub fn read_pod<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>, GpuError> {
+        let bytes = self.read_buffer(src, (count * std::mem::size_of::<T>()) as u64)?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
+    }
+
+    /// Copies `size` bytes of `src` to the host (blocking); nothing for `size` 0.
     pub fn read_buffer(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
+        if size == 0 {
+            return Ok(Vec::new());
+        }
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
             size,
@@ -274,8 +350,15 @@ impl GpuContext {
     }
 }
 
-/// A scene's storage buffers on the device (bind group 0, without the frame uniform's
-/// contents, which change per dispatch).
+/// The major version in a Mesa driver description such as "Mesa 22.3.6 (LLVM 15.0.6)".
+fn mesa_major(driver_info: &str) -> Option<u32> {
+    let rest = driver_info.split("Mesa ").nth(1)?;
+    rest.split(|c: char| !c.is_ascii_digit()).next()?.parse().ok()
+}
+
+/// A scene's storage buffers on the device (bind group 0, without the frame's contents, which
+/// change per dispatch). Cloning shares the buffers.
+#[derive(Clone)]
 pub struct SceneBuffers {
     pub key: FeatureKey,
     pub frame: wgpu::Buffer,
@@ -287,21 +370,25 @@ pub struct SceneBuffers {
 
 impl SceneBuffers {
     pub fn upload(ctx: &GpuContext, g: &GpuScene) -> Result<Self, GpuError> {
+        if g.bounded_count() > MAX_PRIMS {
+            return Err(GpuError::TooManyPrimitives { count: g.bounded_count(), limit: MAX_PRIMS });
+        }
         let buffers = [
             ctx.storage_buffer("spheres", &g.spheres)?,
             ctx.storage_buffer("cylinders", &g.cylinders)?,
             ctx.storage_buffer("planes", &g.planes)?,
             ctx.storage_buffer("triangles", &g.triangles)?,
             ctx.storage_buffer("BVH nodes", &g.nodes)?,
-            ctx.storage_buffer("primitive references", &g.prim_refs)?,
+            ctx.storage_buffer("shape references", &g.shape_refs)?,
             ctx.storage_buffer("materials", &g.materials)?,
             ctx.storage_buffer("lights", &g.lights)?,
             ctx.storage_buffer("emitters", &g.emitters)?,
+            ctx.storage_buffer("leaf-order triangles", &g.leaf_triangles)?,
         ];
         let frame = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
             size: std::mem::size_of::<GpuFrame>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: frame.as_entire_binding() }];
@@ -329,5 +416,17 @@ impl SceneBuffers {
     /// feature the scene uses, and walk a BVH only if the scene has one.
     pub fn runs_with(&self, key: FeatureKey) -> bool {
         (key.0 & self.key.0) == self.key.0 && (!key.has(FeatureKey::BVH) || self.has_bvh)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mesa_versions_read_from_driver_descriptions() {
+        assert_eq!(mesa_major("Mesa 22.3.6 (LLVM 15.0.6)"), Some(22));
+        assert_eq!(mesa_major("Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"), Some(25));
+        assert_eq!(mesa_major("570.124.04"), None);
     }
 }

@@ -26,6 +26,7 @@ pub const MODULES: &[(&str, &str)] = &[
     ("shaders/sampler.wgsl", include_str!("../../../shaders/sampler.wgsl")),
     ("shaders/bsdf.wgsl", include_str!("../../../shaders/bsdf.wgsl")),
     ("shaders/emitters.wgsl", include_str!("../../../shaders/emitters.wgsl")),
+    ("shaders/path_vertex.wgsl", include_str!("../../../shaders/path_vertex.wgsl")),
 ];
 
 /// A top-level shader and its entry points.
@@ -37,6 +38,8 @@ pub enum Program {
     Path,
     /// `trace.wgsl`: ray queries.
     Trace,
+    /// `wavefront.wgsl`: path tracing as separate kernels over queues of paths.
+    Wavefront,
     /// `view.wgsl`: the viewer's debug images (normals, depth, BVH cost) of primary rays;
     /// composed with `COUNT_VISITS`, which makes the traversal count its work.
     View,
@@ -48,6 +51,7 @@ impl Program {
             Program::Render => ("shaders/render.wgsl", include_str!("../../../shaders/render.wgsl")),
             Program::Path => ("shaders/path.wgsl", include_str!("../../../shaders/path.wgsl")),
             Program::Trace => ("shaders/trace.wgsl", include_str!("../../../shaders/trace.wgsl")),
+            Program::Wavefront => ("shaders/wavefront.wgsl", include_str!("../../../shaders/wavefront.wgsl")),
             Program::View => ("shaders/view.wgsl", include_str!("../../../shaders/view.wgsl")),
         }
     }
@@ -69,8 +73,11 @@ impl FeatureKey {
     pub const MIRROR: u32 = 1 << 7;
     pub const DIELECTRIC: u32 = 1 << 8;
     pub const EMISSIVE: u32 = 1 << 9;
-    pub const FLAG_COUNT: u32 = 10;
-    pub const NAMES: [&'static str; 10] = [
+    /// The device reads 64-bit words (`SHADER_INT64`): a flag of the device, not of the scene,
+    /// which [`GpuContext::pipeline`](super::GpuContext::pipeline) adds.
+    pub const LOAD64: u32 = 1 << 10;
+    pub const FLAG_COUNT: u32 = 11;
+    pub const NAMES: [&'static str; 11] = [
         "SPHERES",
         "CYLINDERS",
         "TRIANGLES",
@@ -81,11 +88,15 @@ impl FeatureKey {
         "MIRROR",
         "DIELECTRIC",
         "EMISSIVE",
+        "LOAD64",
     ];
+    /// Flags that describe the device rather than the scene.
+    pub const DEVICE: u32 = Self::LOAD64;
     /// Flags that change the trace program (it has no shading code).
-    pub const GEOMETRY: u32 = Self::SPHERES | Self::CYLINDERS | Self::TRIANGLES | Self::PLANES | Self::BVH;
-    /// Every feature: the one shader that renders any scene.
-    pub const ALL: FeatureKey = FeatureKey((1 << Self::FLAG_COUNT) - 1);
+    pub const GEOMETRY: u32 =
+        Self::SPHERES | Self::CYLINDERS | Self::TRIANGLES | Self::PLANES | Self::BVH | Self::DEVICE;
+    /// Every scene feature: the one shader that renders any scene.
+    pub const ALL: FeatureKey = FeatureKey(((1 << Self::FLAG_COUNT) - 1) & !Self::DEVICE);
 
     /// Scenes with at most this many bounded primitives test them all instead of walking a BVH.
     pub const BRUTE_FORCE_MAX: usize = 8;
@@ -101,7 +112,7 @@ impl FeatureKey {
         set(!g.cylinders.is_empty(), Self::CYLINDERS);
         set(!g.triangles.is_empty(), Self::TRIANGLES);
         set(!g.planes.is_empty(), Self::PLANES);
-        set(g.prim_refs.len() > Self::BRUTE_FORCE_MAX, Self::BVH);
+        set(g.bounded_count() > Self::BRUTE_FORCE_MAX, Self::BVH);
         set(g.lights.iter().any(|l| l.kind == LIGHT_POINT), Self::POINT_LIGHTS);
         set(g.lights.iter().any(|l| l.kind == LIGHT_DIRECTIONAL), Self::DIRECTIONAL_LIGHTS);
         let has = |m: MaterialKind| g.materials.iter().any(|x| x.kind == m as u32);
@@ -118,7 +129,7 @@ impl FeatureKey {
     /// The key as the program sees it: the trace and view programs ignore shading flags.
     pub fn for_program(self, p: Program) -> FeatureKey {
         match p {
-            Program::Render | Program::Path => self,
+            Program::Render | Program::Path | Program::Wavefront => self,
             Program::Trace | Program::View => FeatureKey(self.0 & Self::GEOMETRY),
         }
     }
@@ -145,6 +156,10 @@ impl FeatureKey {
     }
 }
 
+/// What the shaders may use beyond core WGSL: 64-bit integers, in LOAD64 variants only (which
+/// run on devices with `SHADER_INT64`).
+const CAPABILITIES: naga::valid::Capabilities = naga::valid::Capabilities::SHADER_INT64;
+
 #[derive(Debug, thiserror::Error)]
 pub enum ShaderError {
     #[error("composing {file}: {message}")]
@@ -158,6 +173,23 @@ fn compose_error(e: &ComposerError) -> String {
     format!("{e:?}")
 }
 
+/// The text of shader `file` (a path like `shaders/types.wgsl`) with the shared values
+/// substituted ([`super::shared`]): the text built into the binary, or, when the environment
+/// variable `STRAHL_SHADER_DIR` names a folder, the file of that name in it, so that shaders can
+/// be edited and measured without rebuilding.
+fn source_text(file: &str, built_in: &'static str) -> Result<String, ShaderError> {
+    let text = match std::env::var_os("STRAHL_SHADER_DIR") {
+        None => built_in.to_string(),
+        Some(dir) => {
+            let name = std::path::Path::new(file).file_name().expect("shader paths name a file");
+            let path = std::path::Path::new(&dir).join(name);
+            std::fs::read_to_string(&path)
+                .map_err(|e| ShaderError::Compose { file: path.display().to_string(), message: e.to_string() })?
+        }
+    };
+    Ok(super::shared::substitute(&text))
+}
+
 /// Composes `program` for `key` into a naga module.
 pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, ShaderError> {
     let key = key.for_program(program);
@@ -165,11 +197,12 @@ pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, Shader
     if program == Program::View {
         defs.insert("COUNT_VISITS".into(), ShaderDefValue::Bool(true));
     }
-    let mut composer = Composer::default();
+    let mut composer = Composer::default().with_capabilities(CAPABILITIES);
     for (file, src) in MODULES {
+        let src = source_text(file, src)?;
         composer
             .add_composable_module(ComposableModuleDescriptor {
-                source: src,
+                source: &src,
                 file_path: file,
                 language: ShaderLanguage::Wgsl,
                 shader_defs: defs.clone(),
@@ -178,9 +211,10 @@ pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, Shader
             .map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e) })?;
     }
     let (file, src) = program.source();
+    let src = source_text(file, src)?;
     composer
         .make_naga_module(NagaModuleDescriptor {
-            source: src,
+            source: &src,
             file_path: file,
             shader_type: ShaderType::Wgsl,
             shader_defs: defs,
@@ -195,7 +229,7 @@ pub fn validate(
     key: FeatureKey,
     module: &naga::Module,
 ) -> Result<naga::valid::ModuleInfo, ShaderError> {
-    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), CAPABILITIES)
         .validate(module)
         .map_err(|e| ShaderError::Validate { program, key: key.label(), message: format!("{:?}", e.into_inner()) })
 }
@@ -217,7 +251,7 @@ mod tests {
             .into_par_iter()
             .flat_map_iter(|bits| {
                 let key = FeatureKey(bits);
-                [Program::Render, Program::Path, Program::Trace, Program::View]
+                [Program::Render, Program::Path, Program::Wavefront, Program::Trace, Program::View]
                     .into_iter()
                     .filter(move |&p| key.for_program(p) == key)
                     .filter_map(move |p| match compose(p, key) {
@@ -248,7 +282,7 @@ mod tests {
             "plane_roots",
             "refract",
             "fresnel",
-            "BvhNode",
+            "Node",
             "slab",
             "nodes",
         ];
@@ -263,11 +297,70 @@ mod tests {
         assert!(text.len() * 2 < all_text.len(), "{} vs {} bytes", text.len(), all_text.len());
     }
 
+    /// lavapipe 22 leaks a compiled shader per pipeline bind when a uniform steers control
+    /// flow (shaders/bindings.wgsl): no program binds a uniform buffer.
+    #[test]
+    fn no_program_binds_a_uniform_buffer() {
+        for p in [Program::Render, Program::Path, Program::Wavefront, Program::Trace, Program::View] {
+            let key = FeatureKey::ALL.for_program(p);
+            let m = compose(p, key).unwrap();
+            let uniforms: Vec<_> = m
+                .global_variables
+                .iter()
+                .filter(|(_, g)| g.space == naga::AddressSpace::Uniform)
+                .map(|(_, g)| g.name.clone())
+                .collect();
+            assert!(uniforms.is_empty(), "{p:?} binds uniforms {uniforms:?}");
+        }
+    }
+
+    /// The constants of the composed shaders hold the values the host shares with them
+    /// (super::shared), as naga evaluated them.
+    #[test]
+    fn shared_constants_reach_the_composed_shaders_exactly() {
+        use super::super::shared::{Shared, constants};
+        let shared: HashMap<&str, Shared> = constants().into_iter().collect();
+        let mut seen = std::collections::HashSet::new();
+        for p in [Program::Render, Program::Path, Program::Wavefront, Program::Trace, Program::View] {
+            for key in [FeatureKey::ALL, FeatureKey(FeatureKey::ALL.0 | FeatureKey::LOAD64)] {
+                let m = compose(p, key).unwrap();
+                for (_, c) in m.constants.iter() {
+                    let Some(name) = c.name.as_deref().and_then(|n| n.split("X_naga_oil_mod_X").next()) else {
+                        continue;
+                    };
+                    let Some(&want) = shared.get(name) else { continue };
+                    let got = match m.global_expressions[c.init] {
+                        naga::Expression::Literal(naga::Literal::U32(v)) => Shared::U32(v),
+                        naga::Expression::Literal(naga::Literal::F32(v)) => Shared::F32(v),
+                        ref e => panic!("{name}: not a literal: {e:?}"),
+                    };
+                    assert_eq!(got, want, "{name} in the {p:?} shader");
+                    seen.insert(name.to_string());
+                }
+            }
+        }
+        // Workgroup sizes are attributes and the stack depth an array length, not constants.
+        let m = compose(Program::Path, FeatureKey::ALL).unwrap();
+        let stack_len = m.types.iter().find_map(|(_, ty)| match &ty.inner {
+            naga::TypeInner::Struct { members, .. } if ty.name.as_deref()?.starts_with("Stack") => {
+                match m.types[members[0].ty].inner {
+                    naga::TypeInner::Array { size: naga::ArraySize::Constant(n), .. } => Some(n.get()),
+                    _ => None,
+                }
+            }
+            _ => None,
+        });
+        assert_eq!(stack_len.map(Shared::U32), shared.get("GPU_STACK").copied(), "the traversal stack's length");
+        let folded = |n: &str| n.ends_with("WORKGROUP") || n == "GPU_STACK";
+        let missing: Vec<_> = shared.keys().filter(|n| !seen.contains(**n) && !folded(n)).collect();
+        assert!(missing.is_empty(), "not found as constants: {missing:?}");
+    }
+
     /// Every struct the host writes into a GPU buffer has, in the composed WGSL module, the
     /// size and member offsets of its Rust twin (as naga's layouter computes them).
     #[test]
     fn wgsl_struct_layouts_equal_the_rust_structs() {
-        use crate::accel::BvhNode;
+        use crate::accel::gpu_bvh::{GpuLeafTriangle, GpuNode};
         use crate::gpu_types::*;
         use std::mem::{offset_of, size_of};
         macro_rules! layout {
@@ -308,7 +401,8 @@ mod tests {
             layout!("Cylinder", GpuCylinder, [pa, radius, pb, caps, object, prim, material]),
             layout!("Plane", GpuPlane, [point, object, normal, material]),
             layout!("Triangle", GpuTriangle, [va, object, vb, prim, vc, material]),
-            layout!("BvhNode", BvhNode, [bmin, left_or_first, bmax, count]),
+            layout!("Node", GpuNode, [lo_a, link_a, hi_a, link_b, lo_b, hi_b]),
+            layout!("LeafTriangle", GpuLeafTriangle, [va, index, vb, material, vc]),
             layout!("Material", GpuMaterial, [color, kind, radiance, ior, roughness, flags]),
             layout!("Light", GpuLight, [vector, kind, intensity, flags]),
             layout!("Emitter", GpuEmitter, [prim, kind, cdf, pdf]),

@@ -8,7 +8,8 @@ use crate::math::V3;
 use crate::primitives::{Hit, PrimRef, Tag};
 use crate::query::RayQuery;
 
-const WORKGROUP: u64 = 64;
+/// Invocations of a trace workgroup (`TRACE_WORKGROUP` in `shaders/trace.wgsl`).
+pub const WORKGROUP: u64 = 64;
 const HIT_BYTES: u64 = std::mem::size_of::<GpuQueryHit>() as u64;
 
 fn to_gpu(q: &RayQuery) -> GpuQueryRay {
@@ -45,7 +46,7 @@ pub fn trace(
     let entry = if all { "trace_count" } else { "trace_nearest" };
     let first = ctx.pipeline(Program::Trace, key, entry)?;
     let write_all = if all { Some(ctx.pipeline(Program::Trace, key, "trace_all")?) } else { None };
-    // The trace program reads no frame fields, but the uniform must hold valid data.
+    // The trace program reads no frame fields, but the frame buffer must hold valid data.
     ctx.queue.write_buffer(&scene.frame, 0, bytemuck::bytes_of(&GpuFrame::default()));
     let limit = ctx.max_binding_bytes();
     let max_batch =
@@ -61,7 +62,7 @@ pub fn trace(
             let counts_buf = rw_buffer(ctx, "hit counts", n * 4)?;
             let dummy = rw_buffer(ctx, "no hits", HIT_BYTES)?;
             dispatch(ctx, &first.pipeline, scene, &ray_buf, &dummy, &counts_buf, n);
-            let counts: Vec<u32> = bytemuck::cast_slice(&ctx.read_buffer(&counts_buf, n * 4)?).to_vec();
+            let counts: Vec<u32> = ctx.read_pod(&counts_buf, n as usize)?;
             let total: u64 = counts.iter().map(|&c| c as u64).sum();
             if total * HIT_BYTES > limit {
                 if batch.len() == 1 {
@@ -85,8 +86,7 @@ pub fn trace(
             ctx.queue.write_buffer(&counts_buf, 0, bytemuck::cast_slice(&offsets));
             let hits_buf = rw_buffer(ctx, "hits", (total * HIT_BYTES).max(HIT_BYTES))?;
             dispatch(ctx, &write_all.pipeline, scene, &ray_buf, &hits_buf, &counts_buf, n);
-            let bytes = if total > 0 { ctx.read_buffer(&hits_buf, total * HIT_BYTES)? } else { Vec::new() };
-            let hits: &[GpuQueryHit] = bytemuck::cast_slice(&bytes);
+            let hits: Vec<GpuQueryHit> = ctx.read_pod(&hits_buf, total as usize)?;
             for (i, &c) in counts.iter().enumerate() {
                 let o = offsets[i] as usize;
                 out.push(hits[o..o + c as usize].iter().map(from_gpu).collect());
@@ -95,8 +95,7 @@ pub fn trace(
             let hits_buf = rw_buffer(ctx, "hits", n * HIT_BYTES)?;
             let dummy = rw_buffer(ctx, "no offsets", 4)?;
             dispatch(ctx, &first.pipeline, scene, &ray_buf, &hits_buf, &dummy, n);
-            let bytes = ctx.read_buffer(&hits_buf, n * HIT_BYTES)?;
-            let hits: &[GpuQueryHit] = bytemuck::cast_slice(&bytes);
+            let hits: Vec<GpuQueryHit> = ctx.read_pod(&hits_buf, n as usize)?;
             out.extend(hits.iter().map(|h| if h.flags & QUERY_FOUND != 0 { vec![from_gpu(h)] } else { Vec::new() }));
         }
     }
@@ -170,8 +169,7 @@ pub fn trace_spawn(
         let hits_buf = rw_buffer(ctx, "spawn hits", n * HIT_BYTES)?;
         let dummy = rw_buffer(ctx, "no offsets", 4)?;
         dispatch(ctx, &pipe.pipeline, scene, &ray_buf, &hits_buf, &dummy, batch.len() as u64);
-        let bytes = ctx.read_buffer(&hits_buf, n * HIT_BYTES)?;
-        let hits: &[GpuQueryHit] = bytemuck::cast_slice(&bytes);
+        let hits: Vec<GpuQueryHit> = ctx.read_pod(&hits_buf, n as usize)?;
         let get = |h: &GpuQueryHit| (h.flags & QUERY_FOUND != 0).then(|| from_gpu(h));
         out.extend(hits.chunks(2).map(|p| (get(&p[0]), get(&p[1]))));
     }
