@@ -46,17 +46,20 @@ pub fn widen(t: f32) -> f32 {
 /// Direction components below this magnitude count as zero (as in
 /// `traverse::safe_inverse`): the ray runs parallel to that axis.
 const TINY: f32 = 1e-30;
-/// The inverse used on an axis the ray runs parallel to, with the sign of the component
-/// (+ for ±0). On that axis the near planes are measured from the origin moved forward by
-/// [`parallel_shift`], the far planes from it moved back, so that a ray in a box's slab,
-/// even in one of its face planes, gets slab distances of −10³⁰ or less and 10³⁰ or more
-/// (a plane through the exact origin would give 0·inverse = 0: the ray would leave the slab
-/// at once). Boxes beside the ray by less than the shift are entered too, which costs
-/// visits, never hits. Real distances are far below 10³⁰.
-const PARALLEL_INV: f32 = 1e38;
+/// The inverse used on an axis the ray runs parallel to: infinity, with the sign of the
+/// component (+ for ±0). On that axis the near planes are measured from the origin moved
+/// forward by [`parallel_shift`], the far planes from it moved back, so that no plane lies at
+/// distance zero (0·∞ would be NaN): a box whose slab holds the origin, even on one of its
+/// face planes, gets slab distances of −∞ and +∞ (it bounds nothing, at any distance, as in
+/// `traverse::slab`), a box beside the ray by more than the shift +∞ or −∞ (ruled out). A box
+/// beside the ray by less than the shift is entered, which costs visits, never hits; one with
+/// a plane exactly at the moved origin gets a NaN, which keeps or rules out that box, both
+/// right for a box beside the ray. A finite stand-in inverse would cut boxes off at a finite
+/// distance (10³⁸ · shift) that a hit far away can exceed.
+const PARALLEL_INV: f32 = f32::INFINITY;
 
-/// The shift of [`PARALLEL_INV`]: 2⁻¹⁶ of the coordinate, at least 10⁻⁶, so that planes at
-/// the origin end up 10⁻⁶ or more away (10³² after the inverse).
+/// The shift of [`PARALLEL_INV`]: 2⁻¹⁶ of the coordinate (many ulps, so the moved origin
+/// differs from the origin), at least 10⁻⁶.
 fn parallel_shift(o: f32) -> f32 {
     (o.abs() * (1.0 / 65536.0)).max(1e-6)
 }
@@ -319,6 +322,18 @@ mod avx2 {
         }
     }
 
+    /// `triangle::edge_tie` lane by lane: `e`, or where it is 0 the sign of `ey`, or where
+    /// that is 0 too, of −`ex`.
+    #[inline(always)]
+    unsafe fn edge_tie(e: __m128, ex: __m128, ey: __m128) -> __m128 {
+        // SAFETY: SSE4.1 blends, present with AVX2.
+        unsafe {
+            let zero = _mm_setzero_ps();
+            let alt = _mm_blendv_ps(_mm_xor_ps(ex, _mm_set1_ps(-0.0)), ey, _mm_cmpneq_ps(ey, zero));
+            _mm_blendv_ps(alt, e, _mm_cmpneq_ps(e, zero))
+        }
+    }
+
     #[inline(always)]
     pub unsafe fn triangles(block: &LeafBlock, r: &RayPre, tmin: f32, tmax: f32, t: &mut [f32; LANES]) -> u32 {
         // SAFETY: LeafBlock is 16-byte aligned and each coordinate row holds four f32.
@@ -343,9 +358,22 @@ mod avx2 {
             let v = diff_of_products(ax, cy, ay, cx);
             let w = diff_of_products(bx, ay, by, ax);
             let zero = _mm_setzero_ps();
-            let neg = _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(u, zero), _mm_cmplt_ps(v, zero)), _mm_cmplt_ps(w, zero));
-            let pos = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(u, zero), _mm_cmpgt_ps(v, zero)), _mm_cmpgt_ps(w, zero));
             let det = _mm_add_ps(_mm_add_ps(u, v), w);
+            // An edge function of exactly 0 counts with the sign of `edge_tie`. That is rare
+            // on real triangles (det ≠ 0; lanes without a triangle have det = 0 and are
+            // rejected anyway), so the tie signs are only formed when some lane needs them.
+            let on_edge = _mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(u, zero), _mm_cmpeq_ps(v, zero)), _mm_cmpeq_ps(w, zero));
+            let (u_s, v_s, w_s) = if _mm_movemask_ps(_mm_and_ps(on_edge, _mm_cmpneq_ps(det, zero))) == 0 {
+                (u, v, w)
+            } else {
+                (
+                    edge_tie(u, _mm_sub_ps(cx, bx), _mm_sub_ps(cy, by)),
+                    edge_tie(v, _mm_sub_ps(ax, cx), _mm_sub_ps(ay, cy)),
+                    edge_tie(w, _mm_sub_ps(bx, ax), _mm_sub_ps(by, ay)),
+                )
+            };
+            let neg = _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(u_s, zero), _mm_cmplt_ps(v_s, zero)), _mm_cmplt_ps(w_s, zero));
+            let pos = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(u_s, zero), _mm_cmpgt_ps(v_s, zero)), _mm_cmpgt_ps(w_s, zero));
             let num = _mm_add_ps(_mm_add_ps(_mm_mul_ps(u, az), _mm_mul_ps(v, bz)), _mm_mul_ps(w, cz));
             let tt = _mm_div_ps(num, det);
             let inside = _mm_andnot_ps(_mm_and_ps(neg, pos), _mm_cmpneq_ps(det, zero));

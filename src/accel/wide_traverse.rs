@@ -534,11 +534,8 @@ mod tests {
     }
 
     /// A grid of unit squares (two triangles each) in the planes z = 0 and x = 0, every
-    /// triangle twice: rays start on box planes (integer coordinates, so slab distances of
-    /// ±0 occur), run along them or through shared edges and vertices, and every hit is a tie
-    /// between two copies, which the smaller reference must win.
-    #[test]
-    fn rays_on_box_planes_and_through_edges_find_the_brute_force_hit() {
+    /// triangle twice (the copies after the originals), and its wide tree.
+    fn doubled_grid() -> (Primitives<f32>, WideBvh) {
         use crate::geometry::Triangle;
         use crate::primitives::{Tag, Tagged};
         let mut p = Primitives::<f32>::default();
@@ -567,8 +564,16 @@ mod tests {
         }
         let copies = p.triangles.clone();
         p.triangles.extend(copies);
-        let bvh = Bvh::build(&p);
-        let w = WideBvh::new(&bvh, &p);
+        let w = WideBvh::new(&Bvh::build(&p), &p);
+        (p, w)
+    }
+
+    /// On the grid of [`doubled_grid`], rays start on box planes (integer coordinates, so slab
+    /// distances of ±0 occur), run along them or through shared edges and vertices, and every
+    /// hit is a tie between two copies, which the smaller reference must win.
+    #[test]
+    fn rays_on_box_planes_and_through_edges_find_the_brute_force_hit() {
+        let (p, w) = doubled_grid();
         let mut rng = TestRng(33);
         let mut hits = 0;
         for i in 0..20_000 {
@@ -635,5 +640,34 @@ mod tests {
                 assert_eq!(f(&w, &prims, &ray), prims.nearest_brute(&ray, 0.0, f32::INFINITY), "{name}: ray {i}");
             }
         });
+    }
+
+    /// Rays parallel to two axes from up to 3·10³⁸ away, lying in box face planes (integer
+    /// coordinates on the grid of [`doubled_grid`]): the parallel axes must bound no box at any
+    /// distance (a finite stand-in inverse of 10³⁸ cut boxes off at 10³²–10³⁴, and the walk
+    /// missed hits on the far side of that), and the tie between edge-sharing triangles is
+    /// brute force's.
+    #[test]
+    fn far_rays_in_box_face_planes_find_the_brute_force_hit() {
+        let (p, w) = doubled_grid();
+        let mut rng = TestRng(41);
+        let mut hits = 0;
+        for i in 0..4_000 {
+            let far = [1e33f32, 1e36, 1e38, 3e38][i % 4];
+            let (u, v) = (rng.range(-5.0, 5.0).round() as f32, (rng.range(-10.0, 10.0).round() * 0.5) as f32);
+            let s = if i / 4 % 2 == 0 { 1.0 } else { -1.0 };
+            // Towards the grid in the plane x = 0, or the one in z = 0.
+            let ray = if i / 8 % 2 == 0 {
+                Ray::new(V3::new(s * far, u, v), V3::new(-s, 0.0, 0.0))
+            } else {
+                Ray::new(V3::new(u, v, s * far), V3::new(0.0, 0.0, -s))
+            };
+            let want = p.nearest_brute(&ray, 0.0, f32::INFINITY);
+            assert_eq!(nearest(&w, &p, &ray, 0.0, f32::INFINITY), want, "ray {i}: {ray:?}");
+            assert_eq!(nearest_scalar(&w, &p, &ray, 0.0, f32::INFINITY), want, "scalar, ray {i}: {ray:?}");
+            assert_eq!(occluded(&w, &p, &ray, 0.0, f32::INFINITY), want.is_some(), "occlusion, ray {i}");
+            hits += want.is_some() as usize;
+        }
+        assert!(hits > 1_500, "{hits} hits: the test would prove little");
     }
 }
