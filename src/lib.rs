@@ -24,6 +24,7 @@ pub mod output;
 pub mod parts;
 pub mod primitives;
 pub mod query;
+pub mod raysets;
 pub mod render;
 pub mod rng;
 pub mod scene;

@@ -1,9 +1,18 @@
 //! Binned SAH BVH build (Wald, "On fast Construction of SAH-based Bounding Volume
-//! Hierarchies", 2007), parallel with rayon, flattened depth-first into 32-byte nodes.
+//! Hierarchies", 2007), parallel over subtrees with rayon, flattened depth-first into 32-byte
+//! nodes.
+//!
+//! The build works on one array of 32-byte primitive records, partitioned in place. A node
+//! bins its primitives' centroids on all three axes in one pass, sweeps the bins for the
+//! cheapest split, and partitions the records in a second pass that also gathers both
+//! children's bounds, so no pass is spent on bounds alone and nothing is allocated per node.
+//! Subtrees below `PARALLEL_THRESHOLD` primitives are built by one thread straight into their
+//! own node array; the arrays are joined once at the end.
 
-use crate::math::V3;
-use crate::primitives::{PrimRef, Primitives};
+use crate::math::{Real, V3};
+use crate::primitives::{PrimKind, PrimRef, Primitives};
 use bytemuck::{Pod, Zeroable};
+use rayon::prelude::*;
 
 /// One node of the binary tree, 32 bytes: the tree the CPU walks ([`super::traverse`]) and
 /// [`super::gpu_bvh`] collapses into the nodes the GPU walks.
@@ -38,39 +47,56 @@ pub struct Bvh {
 /// Deepest tree the build makes; the traversal stacks hold this many (the GPU's more, for the
 /// levels [`super::gpu_bvh`] adds).
 pub const MAX_DEPTH: u32 = 48;
+/// Bins per axis for nodes of at least this many primitives; smaller nodes use one bin per
+/// primitive, so that the sweep costs no more than the binning pass.
 const BINS: usize = 16;
 const MAX_LEAF: usize = 4;
 /// Cost of visiting a node relative to one primitive test.
 const TRAVERSAL_COST: f32 = 1.0;
-/// Below this many primitives a subtree is built on the current thread.
-const PARALLEL_THRESHOLD: usize = 4096;
+/// Below this many primitives a subtree is built by one thread.
+const PARALLEL_THRESHOLD: usize = 8192;
+/// From this many primitives on, a node's binning pass is itself split over threads.
+const PARALLEL_BINNING: usize = 1 << 17;
 
+/// A box with a fourth lane of padding, so that growing one is two 4-lane min/max.
 #[derive(Clone, Copy, Debug)]
 struct Aabb {
-    lo: [f32; 3],
-    hi: [f32; 3],
+    lo: [f32; 4],
+    hi: [f32; 4],
 }
 
 impl Aabb {
-    const EMPTY: Aabb = Aabb { lo: [f32::INFINITY; 3], hi: [f32::NEG_INFINITY; 3] };
-    fn grow(&mut self, o: &Aabb) {
-        self.lo = std::array::from_fn(|k| self.lo[k].min(o.lo[k]));
-        self.hi = std::array::from_fn(|k| self.hi[k].max(o.hi[k]));
+    const EMPTY: Aabb = Aabb { lo: [f32::INFINITY; 4], hi: [f32::NEG_INFINITY; 4] };
+    #[inline(always)]
+    fn grow(&mut self, lo: &[f32; 4], hi: &[f32; 4]) {
+        for k in 0..4 {
+            self.lo[k] = if lo[k] < self.lo[k] { lo[k] } else { self.lo[k] };
+            self.hi[k] = if hi[k] > self.hi[k] { hi[k] } else { self.hi[k] };
+        }
     }
-    fn grow_point(&mut self, p: [f32; 3]) {
-        self.grow(&Aabb { lo: p, hi: p });
+    #[inline(always)]
+    fn grow_box(&mut self, o: &Aabb) {
+        self.grow(&o.lo, &o.hi);
     }
-    fn area(&self) -> f32 {
+    /// Half the surface area (the SAH only compares ratios).
+    #[inline(always)]
+    fn half_area(&self) -> f32 {
         if self.lo[0] > self.hi[0] {
             return 0.0;
         }
         let e = [self.hi[0] - self.lo[0], self.hi[1] - self.lo[1], self.hi[2] - self.lo[2]];
-        2.0 * (e[0] * e[1] + e[1] * e[2] + e[2] * e[0])
+        e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+    }
+    fn lo3(&self) -> [f32; 3] {
+        [self.lo[0], self.lo[1], self.lo[2]]
+    }
+    fn hi3(&self) -> [f32; 3] {
+        [self.hi[0], self.hi[1], self.hi[2]]
     }
 }
 
 /// Rounds f64 bounds outward to f32, so the f32 box contains the exact primitive.
-fn outward(lo: V3<f64>, hi: V3<f64>) -> Aabb {
+fn outward(lo: V3<f64>, hi: V3<f64>) -> ([f32; 4], [f32; 4]) {
     let down = |v: f64| {
         let f = v as f32;
         if f as f64 > v { f.next_down() } else { f }
@@ -79,166 +105,459 @@ fn outward(lo: V3<f64>, hi: V3<f64>) -> Aabb {
         let f = v as f32;
         if (f as f64) < v { f.next_up() } else { f }
     };
-    Aabb { lo: [down(lo.x), down(lo.y), down(lo.z)], hi: [up(hi.x), up(hi.y), up(hi.z)] }
+    ([down(lo.x), down(lo.y), down(lo.z), 0.0], [up(hi.x), up(hi.y), up(hi.z), 0.0])
 }
 
-#[derive(Clone, Copy)]
+/// One primitive during the build: its box (the fourth lanes: the reference's bits, and 0).
+/// Its centroid, doubled, is `lo + hi`.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
 struct Item {
-    bounds: Aabb,
-    centroid: [f32; 3],
-    prim: PrimRef,
+    lo: [f32; 4],
+    hi: [f32; 4],
 }
 
-enum BuildNode {
-    Leaf { bounds: Aabb, first: usize, count: usize },
-    Interior { bounds: Aabb, children: Box<[BuildNode; 2]> },
+impl Item {
+    #[inline(always)]
+    fn prim(&self) -> PrimRef {
+        PrimRef(self.lo[3].to_bits())
+    }
+    #[inline(always)]
+    fn centroid2(&self, axis: usize) -> f32 {
+        self.lo[axis] + self.hi[axis]
+    }
+}
+
+/// A range of items with the box of their boxes and the box of their doubled centroids.
+#[derive(Clone, Copy, Debug)]
+struct Span {
+    bounds: Aabb,
+    centroids: Aabb,
+}
+
+impl Span {
+    const EMPTY: Span = Span { bounds: Aabb::EMPTY, centroids: Aabb::EMPTY };
+    #[inline(always)]
+    fn add(&mut self, it: &Item) {
+        self.bounds.grow(&it.lo, &it.hi);
+        let c = [it.lo[0] + it.hi[0], it.lo[1] + it.hi[1], it.lo[2] + it.hi[2], 0.0];
+        self.centroids.grow(&c, &c);
+    }
+    fn join(mut self, o: &Span) -> Span {
+        self.bounds.grow_box(&o.bounds);
+        self.centroids.grow_box(&o.centroids);
+        self
+    }
+    fn of(items: &[Item]) -> Span {
+        let mut s = Span::EMPTY;
+        for it in items {
+            s.add(it);
+        }
+        s
+    }
+}
+
+/// Per axis and bin: the bins' boxes and counts (set 0; set 1 is scratch for binning).
+struct Bins {
+    n: usize,
+    boxes: [[[Aabb; BINS]; 3]; 2],
+    counts: [[[u32; BINS]; 3]; 2],
+}
+
+/// Maps a doubled centroid to its bin on each axis (fourth lanes: padding, scale 0).
+#[derive(Clone, Copy)]
+struct Binning {
+    n: usize,
+    lo: [f32; 4],
+    scale: [f32; 4],
+}
+
+impl Binning {
+    fn new(centroids: &Aabb, count: usize) -> Binning {
+        let n = count.clamp(2, BINS);
+        let scale = std::array::from_fn(|a| {
+            let extent = centroids.hi[a] - centroids.lo[a];
+            // Just under n/extent, so that the largest centroid lands in bin n − 1.
+            if a < 3 && extent > 0.0 { n as f32 * (1.0 - 1e-6) / extent } else { 0.0 }
+        });
+        Binning { n, lo: [centroids.lo[0], centroids.lo[1], centroids.lo[2], 0.0], scale }
+    }
+
+    #[inline(always)]
+    fn bin(&self, it: &Item, axis: usize) -> usize {
+        let f = (it.centroid2(axis) - self.lo[axis]) * self.scale[axis];
+        // Clamped to [0, n − 1] first (NaN, impossible here, would become n − 1), so the
+        // conversion is in range.
+        let f = f.min((self.n - 1) as f32).max(0.0);
+        // SAFETY: f is finite and within [0, n − 1].
+        unsafe { f.to_int_unchecked::<u32>() as usize }
+    }
+
+    /// Bins `items` into `b` (only its first `n` bins are reset and used). Items alternate
+    /// between two sets of bins, merged at the end: neighbouring items often fall into the
+    /// same bin, and one set would make each update wait for the previous one's store.
+    fn fill_into(&self, items: &[Item], b: &mut Bins) {
+        b.n = self.n;
+        for set in 0..2 {
+            for axis in 0..3 {
+                b.boxes[set][axis][..self.n].fill(Aabb::EMPTY);
+                b.counts[set][axis][..self.n].fill(0);
+            }
+        }
+        #[inline(always)]
+        fn add(binning: &Binning, b: &mut Bins, set: usize, it: &Item) {
+            for axis in 0..3 {
+                let k = binning.bin(it, axis);
+                b.boxes[set][axis][k].grow(&it.lo, &it.hi);
+                b.counts[set][axis][k] += 1;
+            }
+        }
+        let mut pairs = items.chunks_exact(2);
+        for pair in &mut pairs {
+            add(self, b, 0, &pair[0]);
+            add(self, b, 1, &pair[1]);
+        }
+        if let [it] = pairs.remainder() {
+            add(self, b, 0, it);
+        }
+        for axis in 0..3 {
+            for k in 0..self.n {
+                let (second_box, second_count) = (b.boxes[1][axis][k], b.counts[1][axis][k]);
+                b.boxes[0][axis][k].grow_box(&second_box);
+                b.counts[0][axis][k] += second_count;
+            }
+        }
+    }
+
+    fn fill(&self, items: &[Item]) -> Box<Bins> {
+        let mut b = Bins::new();
+        self.fill_into(items, &mut b);
+        b
+    }
+}
+
+impl Bins {
+    fn new() -> Box<Bins> {
+        Box::new(Bins { n: 0, boxes: [[[Aabb::EMPTY; BINS]; 3]; 2], counts: [[[0; BINS]; 3]; 2] })
+    }
+
+    fn merge(mut self: Box<Bins>, o: &Bins) -> Box<Bins> {
+        for axis in 0..3 {
+            for k in 0..self.n {
+                self.boxes[0][axis][k].grow_box(&o.boxes[0][axis][k]);
+                self.counts[0][axis][k] += o.counts[0][axis][k];
+            }
+        }
+        self
+    }
+
+    /// The cheapest split (axis, first bin of the right side, SAH cost in primitive tests
+    /// per ray reaching the node), over axes whose centroids spread.
+    fn best(&self, binning: &Binning, parent_half_area: f32) -> Option<(usize, usize, f32)> {
+        let n = self.n;
+        let mut best: Option<(usize, usize, f32)> = None;
+        let inv_parent = 1.0 / parent_half_area.max(f32::MIN_POSITIVE);
+        for axis in 0..3 {
+            if binning.scale[axis] == 0.0 {
+                continue;
+            }
+            let (boxes, counts) = (&self.boxes[0][axis], &self.counts[0][axis]);
+            // Right-to-left sweep: area and count of bins k.. for each k.
+            let mut right = [(0.0f32, 0u32); BINS];
+            let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
+            for k in (1..n).rev() {
+                acc.grow_box(&boxes[k]);
+                cnt += counts[k];
+                right[k] = (acc.half_area(), cnt);
+            }
+            let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
+            for k in 1..n {
+                acc.grow_box(&boxes[k - 1]);
+                cnt += counts[k - 1];
+                let (right_area, right_count) = right[k];
+                if cnt == 0 || right_count == 0 {
+                    continue;
+                }
+                let cost =
+                    TRAVERSAL_COST + (acc.half_area() * cnt as f32 + right_area * right_count as f32) * inv_parent;
+                if best.is_none_or(|b| cost < b.2) {
+                    best = Some((axis, k, cost));
+                }
+            }
+        }
+        best
+    }
+}
+
+/// Moves the items of bins below `split` on `axis` to the front; returns how many there are
+/// and the spans of both sides.
+fn partition(items: &mut [Item], binning: &Binning, axis: usize, split: usize) -> (usize, Span, Span) {
+    let (mut left, mut right) = (Span::EMPTY, Span::EMPTY);
+    let (mut i, mut j) = (0, items.len());
+    loop {
+        while i < j && binning.bin(&items[i], axis) < split {
+            left.add(&items[i]);
+            i += 1;
+        }
+        while i < j && binning.bin(&items[j - 1], axis) >= split {
+            right.add(&items[j - 1]);
+            j -= 1;
+        }
+        if i >= j {
+            break;
+        }
+        items.swap(i, j - 1);
+        left.add(&items[i]);
+        right.add(&items[j - 1]);
+        i += 1;
+        j -= 1;
+    }
+    (i, left, right)
+}
+
+/// What to do with a node: a leaf, or children over items[..mid] and items[mid..].
+enum Decision {
+    Leaf,
+    Split { mid: usize, left: Span, right: Span },
+}
+
+/// Nodes of at most this many primitives are split by sorting instead of binning: an exact
+/// SAH sweep over so few primitives costs less than resetting and sweeping bins.
+const SMALL: usize = 12;
+
+/// The exact-SAH decision for a node of 2..=SMALL primitives: per axis the primitives are
+/// sorted by centroid and every split position is evaluated; the items end up in the order
+/// of the chosen axis.
+fn decide_small(items: &mut [Item], span: &Span) -> Decision {
+    let n = items.len();
+    let inv_parent = 1.0 / span.bounds.half_area().max(f32::MIN_POSITIVE);
+    let mut orders = [[0u8; SMALL]; 3];
+    let mut best: Option<(usize, usize, f32)> = None;
+    for (axis, order) in orders.iter_mut().enumerate() {
+        if !(span.centroids.hi[axis] > span.centroids.lo[axis]) {
+            continue;
+        }
+        let order = &mut order[..n];
+        for (k, o) in order.iter_mut().enumerate() {
+            *o = k as u8;
+        }
+        order
+            .sort_unstable_by(|&a, &b| items[a as usize].centroid2(axis).total_cmp(&items[b as usize].centroid2(axis)));
+        let mut right = [0.0f32; SMALL];
+        let mut acc = Aabb::EMPTY;
+        for k in (1..n).rev() {
+            let it = &items[order[k] as usize];
+            acc.grow(&it.lo, &it.hi);
+            right[k] = acc.half_area();
+        }
+        let mut acc = Aabb::EMPTY;
+        for k in 1..n {
+            let it = &items[order[k - 1] as usize];
+            acc.grow(&it.lo, &it.hi);
+            let cost = TRAVERSAL_COST + (acc.half_area() * k as f32 + right[k] * (n - k) as f32) * inv_parent;
+            if best.is_none_or(|b| cost < b.2) {
+                best = Some((axis, k, cost));
+            }
+        }
+    }
+    let (axis, mid) = match best {
+        Some((_, _, cost)) if n <= MAX_LEAF && cost >= n as f32 => return Decision::Leaf,
+        Some((axis, mid, _)) => (axis, mid),
+        None if n <= MAX_LEAF => return Decision::Leaf,
+        // All centroids coincide: split the list in halves.
+        None => {
+            let mid = n / 2;
+            return Decision::Split { mid, left: Span::of(&items[..mid]), right: Span::of(&items[mid..]) };
+        }
+    };
+    let mut sorted = [items[0]; SMALL];
+    for (k, &o) in orders[axis][..n].iter().enumerate() {
+        sorted[k] = items[o as usize];
+    }
+    items.copy_from_slice(&sorted[..n]);
+    Decision::Split { mid, left: Span::of(&items[..mid]), right: Span::of(&items[mid..]) }
+}
+
+/// Chooses between a leaf and the best split of `items`; `scratch` holds the bins.
+fn decide(items: &mut [Item], span: &Span, depth: u32, scratch: &mut Bins) -> Decision {
+    let n = items.len();
+    if n <= 1 || depth >= MAX_DEPTH {
+        return Decision::Leaf;
+    }
+    if n <= SMALL {
+        return decide_small(items, span);
+    }
+    let binning = Binning::new(&span.centroids, n);
+    let merged;
+    let bins: &Bins = if n >= PARALLEL_BINNING {
+        merged = items
+            .par_chunks(PARALLEL_BINNING / 4)
+            .map(|chunk| binning.fill(chunk))
+            .reduce_with(|a, b| a.merge(&b))
+            .expect("a node has items");
+        &merged
+    } else {
+        binning.fill_into(items, scratch);
+        scratch
+    };
+    match bins.best(&binning, span.bounds.half_area()) {
+        // Stay a leaf when no split pays for itself, if the leaf is small enough.
+        Some((_, _, cost)) if n <= MAX_LEAF && cost >= n as f32 => Decision::Leaf,
+        Some((axis, split, _)) => {
+            let (mid, left, right) = partition(items, &binning, axis, split);
+            Decision::Split { mid, left, right }
+        }
+        None if n <= MAX_LEAF => Decision::Leaf,
+        // All centroids coincide: split the list in halves.
+        None => {
+            let mid = n / 2;
+            let (left, right) = (Span::of(&items[..mid]), Span::of(&items[mid..]));
+            Decision::Split { mid, left, right }
+        }
+    }
+}
+
+fn node_of(bounds: &Aabb, left_or_first: u32, count: u32) -> BvhNode {
+    BvhNode { bmin: bounds.lo3(), left_or_first, bmax: bounds.hi3(), count }
+}
+
+/// Builds the subtree over `items` (starting at `offset` in the final primitive order) on
+/// this thread, appending its nodes depth-first to `out` (right-child indices relative to
+/// `out`'s start); returns its depth.
+fn build_serial(
+    items: &mut [Item],
+    offset: usize,
+    span: &Span,
+    depth: u32,
+    out: &mut Vec<BvhNode>,
+    scratch: &mut Bins,
+) -> u32 {
+    match decide(items, span, depth, scratch) {
+        Decision::Leaf => {
+            out.push(node_of(&span.bounds, offset as u32, items.len() as u32));
+            depth
+        }
+        Decision::Split { mid, left, right } => {
+            let me = out.len();
+            out.push(node_of(&span.bounds, 0, 0));
+            let (l, r) = items.split_at_mut(mid);
+            let dl = build_serial(l, offset, &left, depth + 1, out, scratch);
+            out[me].left_or_first = out.len() as u32;
+            let dr = build_serial(r, offset + mid, &right, depth + 1, out, scratch);
+            dl.max(dr)
+        }
+    }
+}
+
+/// A subtree built in parallel: its top nodes, and below them node arrays built serially.
+enum Part {
+    Serial { nodes: Vec<BvhNode>, depth: u32 },
+    Split { node: BvhNode, left: Box<Part>, right: Box<Part> },
+}
+
+fn build_parallel(items: &mut [Item], offset: usize, span: &Span, depth: u32) -> Part {
+    if items.len() < PARALLEL_THRESHOLD {
+        let mut nodes = Vec::with_capacity(items.len());
+        let depth = build_serial(items, offset, span, depth, &mut nodes, &mut Bins::new());
+        return Part::Serial { nodes, depth };
+    }
+    match decide(items, span, depth, &mut Bins::new()) {
+        Decision::Leaf => Part::Serial { nodes: vec![node_of(&span.bounds, offset as u32, items.len() as u32)], depth },
+        Decision::Split { mid, left, right } => {
+            let (l, r) = items.split_at_mut(mid);
+            let (pl, pr) = rayon::join(
+                || build_parallel(l, offset, &left, depth + 1),
+                || build_parallel(r, offset + mid, &right, depth + 1),
+            );
+            Part::Split { node: node_of(&span.bounds, 0, 0), left: Box::new(pl), right: Box::new(pr) }
+        }
+    }
+}
+
+impl Part {
+    fn len(&self) -> usize {
+        match self {
+            Part::Serial { nodes, .. } => nodes.len(),
+            Part::Split { left, right, .. } => 1 + left.len() + right.len(),
+        }
+    }
+    /// Appends the subtree depth-first, right-child indices made absolute; returns its depth.
+    fn flatten_into(self, out: &mut Vec<BvhNode>) -> u32 {
+        match self {
+            Part::Serial { nodes, depth } => {
+                let base = out.len() as u32;
+                out.extend(nodes.into_iter().map(|mut n| {
+                    if !n.is_leaf() {
+                        n.left_or_first += base;
+                    }
+                    n
+                }));
+                depth
+            }
+            Part::Split { mut node, left, right } => {
+                let me = out.len();
+                node.left_or_first = (me + 1 + left.len()) as u32;
+                out.push(node);
+                left.flatten_into(out).max(right.flatten_into(out))
+            }
+        }
+    }
 }
 
 impl Bvh {
     /// Builds over every bounded primitive of `prims` (planes stay outside).
-    pub fn build<R: crate::math::Real>(prims: &Primitives<R>) -> Bvh {
-        use rayon::prelude::*;
+    pub fn build<R: Real>(prims: &Primitives<R>) -> Bvh {
         let refs: Vec<PrimRef> = prims.bounded_refs().collect();
-        let mut items: Vec<Item> = refs
-            .par_iter()
-            .map(|&prim| {
-                let (lo, hi) = prims.bounds_f64(prim);
-                let bounds = outward(lo, hi);
-                let c = (lo + hi) * 0.5;
-                Item { bounds, centroid: [c.x as f32, c.y as f32, c.z as f32], prim }
-            })
-            .collect();
+        let mut items: Vec<Item> = super::huge_pages::vec_with_capacity(refs.len());
+        items.par_extend(refs.par_iter().with_min_len(4096).map(|&prim| {
+            let (lo, hi) = match prim.kind() {
+                // Min and max are exact, so only the conversion to f32 rounds.
+                PrimKind::Triangle => {
+                    let v = &prims.triangles[prim.index()].shape.v;
+                    let lo = v[0].min_elem(v[1]).min_elem(v[2]).to_f64();
+                    let hi = v[0].max_elem(v[1]).max_elem(v[2]).to_f64();
+                    outward(lo, hi)
+                }
+                _ => {
+                    let (lo, hi) = prims.bounds_f64(prim);
+                    outward(lo, hi)
+                }
+            };
+            Item { lo: [lo[0], lo[1], lo[2], f32::from_bits(prim.0)], hi }
+        }));
         if items.is_empty() {
             return Bvh::default();
         }
-        let root = build_node(&mut items, 0, 1);
-        let mut bvh = Bvh {
-            nodes: Vec::with_capacity(2 * refs.len() / MAX_LEAF + 1),
-            prim_refs: items.iter().map(|it| it.prim).collect(),
-            depth: 0,
-        };
-        bvh.depth = flatten(&root, &mut bvh.nodes, 1);
-        bvh
+        let span = items.par_chunks(1 << 16).map(Span::of).reduce(|| Span::EMPTY, |a, b| a.join(&b));
+        let root = build_parallel(&mut items, 0, &span, 1);
+        let mut nodes = super::huge_pages::vec_with_capacity(root.len());
+        let depth = root.flatten_into(&mut nodes);
+        let mut prim_refs = super::huge_pages::vec_with_capacity(items.len());
+        prim_refs.par_extend(items.par_iter().map(Item::prim));
+        Bvh { nodes, prim_refs, depth }
     }
 
     pub fn is_empty(&self) -> bool {
         self.nodes.is_empty()
     }
-}
 
-fn bounds_of(items: &[Item]) -> (Aabb, Aabb) {
-    let mut b = Aabb::EMPTY;
-    let mut cb = Aabb::EMPTY;
-    for it in items {
-        b.grow(&it.bounds);
-        cb.grow_point(it.centroid);
-    }
-    (b, cb)
-}
-
-/// Builds the subtree over `items`, which start at `offset` in the final primitive order.
-fn build_node(items: &mut [Item], offset: usize, depth: u32) -> BuildNode {
-    let (bounds, cbounds) = bounds_of(items);
-    let n = items.len();
-    let leaf = BuildNode::Leaf { bounds, first: offset, count: n };
-    if n <= 1 || depth >= MAX_DEPTH {
-        return leaf;
-    }
-    let split = best_split(items, &bounds, &cbounds);
-    let mid = match split {
-        Some((axis, pos, cost)) => {
-            // Stay a leaf when no split pays for itself, if the leaf is small enough.
-            if n <= MAX_LEAF && cost >= n as f32 {
-                return leaf;
-            }
-            partition(items, |it| it.centroid[axis] < pos)
-        }
-        None if n <= MAX_LEAF => return leaf,
-        // All centroids coincide: split the list in halves.
-        None => n / 2,
-    };
-    let mid = if mid == 0 || mid == n { n / 2 } else { mid };
-    let (left, right) = items.split_at_mut(mid);
-    let (l, r) = if n >= PARALLEL_THRESHOLD {
-        rayon::join(|| build_node(left, offset, depth + 1), || build_node(right, offset + mid, depth + 1))
-    } else {
-        (build_node(left, offset, depth + 1), build_node(right, offset + mid, depth + 1))
-    };
-    BuildNode::Interior { bounds, children: Box::new([l, r]) }
-}
-
-/// The SAH-best binned split: (axis, centroid position, cost in primitive tests per ray that
-/// reaches this node).
-fn best_split(items: &[Item], bounds: &Aabb, cb: &Aabb) -> Option<(usize, f32, f32)> {
-    let parent_area = bounds.area();
-    let mut best: Option<(usize, f32, f32)> = None;
-    for axis in 0..3 {
-        let (lo, hi) = (cb.lo[axis], cb.hi[axis]);
-        if !(hi > lo) {
-            continue;
-        }
-        let scale = BINS as f32 / (hi - lo);
-        let mut bins = [(Aabb::EMPTY, 0usize); BINS];
-        for it in items {
-            let b = (((it.centroid[axis] - lo) * scale) as usize).min(BINS - 1);
-            bins[b].0.grow(&it.bounds);
-            bins[b].1 += 1;
-        }
-        // Sweep from the right, then from the left, evaluating the SAH at each bin boundary.
-        let mut right_area = [0.0f32; BINS];
-        let mut right_count = [0usize; BINS];
-        let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
-        for i in (1..BINS).rev() {
-            acc.grow(&bins[i].0);
-            cnt += bins[i].1;
-            right_area[i] = acc.area();
-            right_count[i] = cnt;
-        }
-        let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
-        for i in 1..BINS {
-            acc.grow(&bins[i - 1].0);
-            cnt += bins[i - 1].1;
-            if cnt == 0 || right_count[i] == 0 {
-                continue;
-            }
-            let cost = TRAVERSAL_COST
-                + (acc.area() * cnt as f32 + right_area[i] * right_count[i] as f32)
-                    / parent_area.max(f32::MIN_POSITIVE);
-            if best.is_none_or(|b| cost < b.2) {
-                best = Some((axis, lo + i as f32 / scale, cost));
-            }
-        }
-    }
-    best
-}
-
-/// Moves the items satisfying `left` to the front; returns how many there are.
-fn partition(items: &mut [Item], left: impl Fn(&Item) -> bool) -> usize {
-    let mut i = 0;
-    for j in 0..items.len() {
-        if left(&items[j]) {
-            items.swap(i, j);
-            i += 1;
-        }
-    }
-    i
-}
-
-/// Appends `node`'s subtree depth-first; returns its depth.
-fn flatten(node: &BuildNode, out: &mut Vec<BvhNode>, depth: u32) -> u32 {
-    match node {
-        BuildNode::Leaf { bounds, first, count } => {
-            out.push(BvhNode { bmin: bounds.lo, left_or_first: *first as u32, bmax: bounds.hi, count: *count as u32 });
-            depth
-        }
-        BuildNode::Interior { bounds, children } => {
-            let me = out.len();
-            out.push(BvhNode { bmin: bounds.lo, left_or_first: 0, bmax: bounds.hi, count: 0 });
-            let dl = flatten(&children[0], out, depth + 1);
-            out[me].left_or_first = out.len() as u32;
-            let dr = flatten(&children[1], out, depth + 1);
-            dl.max(dr)
-        }
+    /// The tree's SAH cost, in the builder's units (one primitive test = 1, one node visit =
+    /// `TRAVERSAL_COST`): Σ over interior nodes of A(node)/A(root)·`TRAVERSAL_COST` plus Σ
+    /// over leaves of A(leaf)/A(root)·(primitives in it), the expected work of a ray that
+    /// enters the root box (MacDonald & Booth, "Heuristics for ray tracing using space
+    /// subdivision", 1990). 0 for an empty tree.
+    pub fn sah_cost(&self) -> f64 {
+        let area = |n: &BvhNode| {
+            let lo = [n.bmin[0], n.bmin[1], n.bmin[2], 0.0];
+            let hi = [n.bmax[0], n.bmax[1], n.bmax[2], 0.0];
+            Aabb { lo, hi }.half_area() as f64
+        };
+        let Some(root) = self.nodes.first() else { return 0.0 };
+        let root_area = area(root).max(f64::MIN_POSITIVE);
+        self.nodes
+            .iter()
+            .map(|n| area(n) / root_area * if n.is_leaf() { n.count as f64 } else { TRAVERSAL_COST as f64 })
+            .sum()
     }
 }
 

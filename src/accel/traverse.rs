@@ -137,44 +137,18 @@ pub fn all<R: Real>(bvh: &Bvh, prims: &Primitives<R>, ray: &Ray<R>, tmin: R, tma
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::testutil::{TestRays, TestRng, ray_f32};
-    use crate::geometry::{Cylinder, Plane, Sphere, Triangle};
-    use crate::primitives::{Tag, Tagged};
+    use crate::accel::{WideBvh, wide_traverse};
+    use crate::geometry::testutil::{TestRays, TestRng, mixed_scene, ray_f32};
 
-    /// A mixed scene: spheres, cylinders, triangles scattered in a 100-unit cube, one plane.
-    fn mixed_scene(seed: u64) -> Primitives<f32> {
-        let mut rng = TestRng(seed);
-        let mut p = Primitives::<f64>::default();
-        let tag = |o: usize| Tag { object: o as u32, prim: 0, material: 0 };
-        for i in 0..300 {
-            p.spheres
-                .push(Tagged { shape: Sphere { center: rng.in_cube(50.0), radius: rng.range(0.2, 3.0) }, tag: tag(i) });
-        }
-        for i in 0..300 {
-            let p1 = rng.in_cube(50.0);
-            let p2 = p1 + rng.unit_vector() * rng.range(0.5, 6.0);
-            let caps = i % 2 == 0;
-            p.cylinders
-                .push(Tagged { shape: Cylinder { p1, p2, radius: rng.range(0.1, 1.5), caps }, tag: tag(300 + i) });
-        }
-        for i in 0..3000 {
-            let c = rng.in_cube(50.0);
-            p.triangles
-                .push(Tagged { shape: Triangle { v: [0, 1, 2].map(|_| c + rng.in_cube(2.5)) }, tag: tag(600 + i) });
-        }
-        p.planes.push(Tagged {
-            shape: Plane { point: V3::new(0.0, -60.0, 0.0), normal: V3::new(0.0, 1.0, 0.0) },
-            tag: tag(4000),
-        });
-        p.cast()
-    }
-
-    /// The acceptance test of the BVH: on 100k random rays it returns exactly the hit the
-    /// brute-force loop returns (same t bit for bit, same primitive, same normal).
+    /// The acceptance test of the BVH: on 100k random rays the binary walk (the GPU's
+    /// mirror) and the CPU's wide walk, with each lane implementation this CPU has, return
+    /// exactly the hit the brute-force loop returns (same t bit for bit, same primitive, same
+    /// normal).
     #[test]
     fn bvh_nearest_equals_brute_force_on_100k_rays() {
         let prims = mixed_scene(21);
         let bvh = Bvh::build(&prims);
+        let wide = WideBvh::new(&bvh, &prims);
         let mut rng = TestRng(99);
         let mut hits = 0;
         for i in 0..100_000 {
@@ -196,6 +170,12 @@ mod tests {
             let want = prims.nearest_brute(&ray, 0.0, f32::INFINITY);
             let got = nearest(&bvh, &prims, &ray, 0.0, f32::INFINITY);
             assert_eq!(want, got, "ray {i}: {ray:?}");
+            assert_eq!(want, wide_traverse::nearest(&wide, &prims, &ray, 0.0, f32::INFINITY), "wide, ray {i}: {ray:?}");
+            assert_eq!(
+                want,
+                wide_traverse::nearest_scalar(&wide, &prims, &ray, 0.0, f32::INFINITY),
+                "wide scalar, ray {i}"
+            );
             hits += want.is_some() as usize;
         }
         assert!(hits > 30_000, "only {hits} hits: the test would prove little");

@@ -1,4 +1,5 @@
-//! `strahl bench`: how fast each backend renders, on the machine at hand, in one run.
+//! `strahl bench`: how fast each backend renders, on the machine at hand, in one run
+//! (`strahl bench rays`, BVH build and ray casting, is in [`super::bench_rays`]).
 //!
 //! For each scene and mode:
 //! - Whitted (primary rays per second): the GPU with the scene's specialised shader and with
@@ -16,7 +17,7 @@
 //! measured. `--json` prints one JSON object instead of the tables.
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, ValueEnum};
+use clap::{Args, Subcommand, ValueEnum};
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -40,7 +41,10 @@ pub enum BenchMode {
 }
 
 #[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct BenchArgs {
+    #[command(subcommand)]
+    pub command: Option<BenchCommand>,
     /// Scene files (default: seed.toml and spheres.toml of the repository's assets/scenes,
     /// found from the working directory or from where strahl was built).
     pub scenes: Vec<PathBuf>,
@@ -70,11 +74,21 @@ pub struct BenchArgs {
     pub compile_only: Option<u32>,
 }
 
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// BVH build time and nearest-hit rays per second on one scene or mesh, on the CPU or
+    /// the GPU, with the ray sets of the Embree anchor benchmark.
+    Rays(super::bench_rays::RaysArgs),
+}
+
 pub fn run(a: BenchArgs) -> Result<()> {
+    if let Some(BenchCommand::Rays(r)) = a.command {
+        return super::bench_rays::run(r);
+    }
     match a.compile_only {
         Some(bits) => {
             let path = a.scenes.first().context("--compile-only needs a scene")?;
-            let prep = Prepared::new(Scene::load(path)?);
+            let prep = Prepared::try_new(Scene::load(path)?)?;
             let ctx = GpuContext::new()?;
             let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
             println!("{}", first_dispatch(&ctx, &buffers, &prep, FeatureKey(bits))?.as_secs_f64());
@@ -170,7 +184,7 @@ fn bench(a: BenchArgs) -> Result<()> {
     });
     let mut results = Vec::new();
     for path in &scenes {
-        let prep = Prepared::new(Scene::load(path)?);
+        let prep = Prepared::try_new(Scene::load(path)?)?;
         let (w, h) = (a.width.unwrap_or(prep.scene.image.width), a.height.unwrap_or(prep.scene.image.height));
         super::check_image_size(w, h, a.width.is_some() || a.height.is_some())?;
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();

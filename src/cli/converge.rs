@@ -107,7 +107,7 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
         None => None,
     };
 
-    let prep = Arc::new(Prepared::new(scene));
+    let prep = Arc::new(Prepared::try_new(scene)?);
     super::print_scene_summary(&prep);
 
     // Every measured backend is opened (and the GPU's pipeline compiled) before anything is

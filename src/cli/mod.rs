@@ -1,6 +1,7 @@
 //! Subcommands of `strahl`.
 
 mod bench;
+mod bench_rays;
 mod converge;
 mod merge;
 mod progress;
@@ -34,7 +35,8 @@ pub enum Command {
     Merge(merge::MergeArgs),
     /// Answer ray queries from a CSV file: nearest or every intersection per ray.
     Trace(trace::TraceArgs),
-    /// Measure shader compile and frame times: specialised against all-features shaders.
+    /// Measure shader compile and frame times (specialised against all-features shaders), or
+    /// with `bench rays` BVH build time and rays per second.
     Bench(bench::BenchArgs),
     /// Run the numerical-stability suite: robust against textbook formulations, CPU and GPU.
     Stiff(stiff::StiffArgs),

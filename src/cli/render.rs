@@ -128,7 +128,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         (None, Some((k, n))) => Region::band(k, n, width, height),
         (None, None) => Region::whole(width, height),
     };
-    let prep = Prepared::new(scene);
+    let prep = Prepared::try_new(scene)?;
     super::print_scene_summary(&prep);
     let mut frame = prep.frame(width, height);
     frame.seed = a.seed;

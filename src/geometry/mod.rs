@@ -109,7 +109,9 @@ pub fn stable_quadratic<R: Real>(a: R, beta: R, c: R, disc: R) -> Option<(R, R)>
 
 #[cfg(test)]
 pub(crate) mod testutil {
+    use super::{Cylinder, Plane, Sphere, Triangle};
     use crate::math::{Ray, V3};
+    use crate::primitives::{Primitives, Tag, Tagged};
 
     pub use crate::rng::SplitMix64 as TestRng;
 
@@ -134,6 +136,34 @@ pub(crate) mod testutil {
             let p = target + self.in_cube(target_h);
             Ray::new(o, (p - o).normalize())
         }
+    }
+
+    /// A mixed scene: spheres, cylinders, triangles scattered in a 100-unit cube, one plane.
+    pub fn mixed_scene(seed: u64) -> Primitives<f32> {
+        let mut rng = TestRng(seed);
+        let mut p = Primitives::<f64>::default();
+        let tag = |o: usize| Tag { object: o as u32, prim: 0, material: 0 };
+        for i in 0..300 {
+            p.spheres
+                .push(Tagged { shape: Sphere { center: rng.in_cube(50.0), radius: rng.range(0.2, 3.0) }, tag: tag(i) });
+        }
+        for i in 0..300 {
+            let p1 = rng.in_cube(50.0);
+            let p2 = p1 + rng.unit_vector() * rng.range(0.5, 6.0);
+            let caps = i % 2 == 0;
+            p.cylinders
+                .push(Tagged { shape: Cylinder { p1, p2, radius: rng.range(0.1, 1.5), caps }, tag: tag(300 + i) });
+        }
+        for i in 0..3000 {
+            let c = rng.in_cube(50.0);
+            p.triangles
+                .push(Tagged { shape: Triangle { v: [0, 1, 2].map(|_| c + rng.in_cube(2.5)) }, tag: tag(600 + i) });
+        }
+        p.planes.push(Tagged {
+            shape: Plane { point: V3::new(0.0, -60.0, 0.0), normal: V3::new(0.0, 1.0, 0.0) },
+            tag: tag(4000),
+        });
+        p.cast()
     }
 
     /// The f32 image of an f64 ray, with the direction renormalised in f32 as strahl does.

@@ -21,12 +21,14 @@ pub struct Triangle<R> {
 /// The ray's shear, shared by all triangles a ray is tested against.
 #[derive(Clone, Copy, Debug)]
 pub struct Shear<R> {
-    kx: usize,
-    ky: usize,
-    kz: usize,
-    sx: R,
-    sy: R,
-    sz: R,
+    /// The permutation: kz is the dominant axis of d, kx and ky follow it.
+    pub kx: usize,
+    pub ky: usize,
+    pub kz: usize,
+    /// The shear: −d[kx]/d[kz] and −d[ky]/d[kz] enter as `x − sx·z`, and 1/d[kz].
+    pub sx: R,
+    pub sy: R,
+    pub sz: R,
 }
 
 impl<R: Real> Shear<R> {

@@ -24,7 +24,7 @@ use super::emitters::{self, area_pdf, emitted_cos};
 use super::sampler::{Sampler, pixel_jitter};
 use super::shade::ShadeInputs;
 use super::spawn::spawn_origin;
-use crate::accel::traverse;
+use crate::accel::wide_traverse;
 use crate::math::{Ray, V3};
 use crate::primitives::{Hit, PrimKind};
 use crate::scene::MaterialKind;
@@ -169,7 +169,7 @@ pub fn shade_vertex(
 
 /// Whether anything lies in (0, tmax) along the shadow ray.
 fn occluded(inp: &ShadeInputs, ray: &Ray<f32>, tmax: f32) -> bool {
-    traverse::nearest(inp.bvh, inp.prims, ray, 0.0, tmax).is_some()
+    wide_traverse::occluded(inp.wide, inp.prims, ray, 0.0, tmax)
 }
 
 /// Radiance arriving along `ray`, one path (the GPU's megakernel, `path.wgsl`): each vertex
@@ -178,7 +178,7 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>, rng: &mut Sampler) -> V3<f32> 
     let mut p = PathState::new(ray);
     let mut nee = None;
     loop {
-        let hit = traverse::nearest(inp.bvh, inp.prims, &p.ray, 0.0, f32::INFINITY);
+        let hit = wide_traverse::nearest(inp.wide, inp.prims, &p.ray, 0.0, f32::INFINITY);
         let more = shade_vertex(inp, &mut p, hit.as_ref(), rng, &mut nee);
         if let Some(n) = nee
             && !occluded(inp, &n.ray, n.dist)

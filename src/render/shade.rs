@@ -8,7 +8,7 @@
 
 use super::camera::primary_ray;
 use super::spawn::spawn_origin;
-use crate::accel::{Bvh, traverse};
+use crate::accel::{WideBvh, wide_traverse};
 use crate::gpu_types::{GpuFrame, GpuLight, GpuMaterial, GpuScene, LIGHT_POINT};
 use crate::math::{Ray, V3};
 use crate::primitives::Primitives;
@@ -24,10 +24,11 @@ pub const SHADOW_PASSES: u32 = 8;
 
 const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
 
-/// What the shading stage reads: geometry, its BVH, and the GPU-layout scene data.
+/// What the shading stage reads: geometry, the CPU's traversal layout of its BVH, and the
+/// GPU-layout scene data.
 pub struct ShadeInputs<'a> {
     pub prims: &'a Primitives<f32>,
-    pub bvh: &'a Bvh,
+    pub wide: &'a WideBvh,
     pub gpu: &'a GpuScene,
     pub frame: &'a GpuFrame,
 }
@@ -63,7 +64,7 @@ fn shadow_transmittance(inp: &ShadeInputs, from: &Ray<f32>, t: f32, n: V3<f32>, 
     let mut tr = V3::splat(1.0f32);
     for _ in 0..SHADOW_PASSES {
         let ray = Ray::new(origin, l);
-        let Some(hit) = traverse::nearest(inp.bvh, inp.prims, &ray, 0.0, remaining) else {
+        let Some(hit) = wide_traverse::nearest(inp.wide, inp.prims, &ray, 0.0, remaining) else {
             return tr;
         };
         let m = &inp.gpu.materials[hit.tag.material as usize];
@@ -123,7 +124,7 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
     while sp > 0 {
         sp -= 1;
         let Pending { ray, weight, depth } = stack[sp];
-        let Some(hit) = traverse::nearest(inp.bvh, inp.prims, &ray, 0.0, f32::INFINITY) else {
+        let Some(hit) = wide_traverse::nearest(inp.wide, inp.prims, &ray, 0.0, f32::INFINITY) else {
             color += weight.mul_elem(V3::from_array(inp.frame.background));
             continue;
         };

@@ -13,6 +13,9 @@ pub enum SceneError {
     /// A problem in a mesh file an object refers to.
     #[error("{path}:{line}:{column}: {field}: mesh {mesh}: {message}")]
     Mesh { path: PathBuf, line: usize, column: usize, field: String, mesh: PathBuf, message: String },
+    /// A problem in a file that comes with a mesh (its camera file).
+    #[error("{path}: {message}")]
+    File { path: PathBuf, message: String },
     /// The scene is valid but larger than strahl accepts.
     #[error("{path}: {message}")]
     TooLarge { path: PathBuf, message: String },

@@ -7,6 +7,7 @@ pub mod error;
 pub mod file;
 pub mod mesh;
 pub mod polygon;
+pub mod procedural;
 
 pub use error::SceneError;
 
@@ -195,6 +196,14 @@ impl Geometry {
             Self::Mesh { .. } => ObjectKind::Mesh,
         }
     }
+
+    /// How many primitives the object becomes when flattened (its triangles, or one).
+    pub fn primitive_count(&self) -> usize {
+        match self {
+            Self::Polygon { triangles, .. } | Self::Mesh { triangles, .. } => triangles.len(),
+            _ => 1,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -226,11 +235,8 @@ impl Scene {
     pub fn triangle_count(&self) -> usize {
         self.objects
             .iter()
-            .map(|o| match &o.geometry {
-                Geometry::Triangle(_) => 1,
-                Geometry::Polygon { triangles, .. } | Geometry::Mesh { triangles, .. } => triangles.len(),
-                _ => 0,
-            })
+            .filter(|o| matches!(o.geometry, Geometry::Triangle(_) | Geometry::Polygon { .. } | Geometry::Mesh { .. }))
+            .map(|o| o.geometry.primitive_count())
             .sum()
     }
 }

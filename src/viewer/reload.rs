@@ -42,9 +42,7 @@ pub fn prepare(scene: Scene, visible: &[bool]) -> Prepared {
     prims.cylinders.retain(|p| shown(p.tag.object));
     prims.triangles.retain(|p| shown(p.tag.object));
     prims.planes.retain(|p| shown(p.tag.object));
-    let bvh = Bvh::build(&prims);
-    let gpu = GpuScene::new(&scene, &prims, &bvh);
-    Prepared { scene, prims, bvh, gpu, build_time: start.elapsed() }
+    Prepared::from_prims(scene, prims, start)
 }
 
 /// "3 mesh (glass)": an object's line in the visibility list.
@@ -66,7 +64,9 @@ pub fn object_label(scene: &Scene, index: usize) -> String {
 /// Loads a scene file and prepares it with every object visible. The error is the full
 /// [`crate::scene::SceneError`] text.
 pub fn load(path: &Path) -> Result<Prepared, String> {
-    Scene::load(path).map(Prepared::new).map_err(|e| e.to_string())
+    let scene = Scene::load(path).map_err(|e| e.to_string())?;
+    crate::render::check_memory(&scene, crate::render::available_memory()).map_err(|e| e.to_string())?;
+    Ok(Prepared::new(scene))
 }
 
 impl Viewer {

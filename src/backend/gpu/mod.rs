@@ -296,17 +296,19 @@ impl GpuContext {
     /// A storage buffer holding `data`; an empty slice gets a one-element buffer of 0xFF bytes
     /// (NaN floats), which no intersection routine can hit, for variants that still bind it.
     pub fn storage_buffer<T: bytemuck::Pod>(&self, what: &str, data: &[T]) -> Result<wgpu::Buffer, GpuError> {
-        let bytes: Vec<u8> = if data.is_empty() {
-            vec![0xFF; std::mem::size_of::<T>().max(4)]
-        } else {
-            bytemuck::cast_slice(data).to_vec()
-        };
-        self.check_binding_size(what, bytes.len() as u64)?;
-        Ok(self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        self.check_binding_size(what, std::mem::size_of_val(data) as u64)?;
+        Ok(self.storage_bytes(what, bytemuck::cast_slice(data), std::mem::size_of::<T>()))
+    }
+
+    /// [`GpuContext::storage_buffer`] over bytes already checked against the binding limit;
+    /// `element`: the size of one element, for the stand-in buffer of an empty array.
+    fn storage_bytes(&self, what: &str, bytes: &[u8], element: usize) -> wgpu::Buffer {
+        let empty = vec![0xFF; element.max(4)];
+        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some(what),
-            contents: &bytes,
+            contents: if bytes.is_empty() { &empty } else { bytes },
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        }))
+        })
     }
 
     /// Copies the first `count` elements of `src`, an array of `T`, to the host (blocking).
@@ -366,18 +368,24 @@ impl SceneBuffers {
         if g.bounded_count() > MAX_PRIMS {
             return Err(GpuError::TooManyPrimitives { count: g.bounded_count(), limit: MAX_PRIMS });
         }
-        let buffers = [
-            ctx.storage_buffer("spheres", &g.spheres)?,
-            ctx.storage_buffer("cylinders", &g.cylinders)?,
-            ctx.storage_buffer("planes", &g.planes)?,
-            ctx.storage_buffer("triangles", &g.triangles)?,
-            ctx.storage_buffer("BVH nodes", &g.nodes)?,
-            ctx.storage_buffer("shape references", &g.shape_refs)?,
-            ctx.storage_buffer("materials", &g.materials)?,
-            ctx.storage_buffer("lights", &g.lights)?,
-            ctx.storage_buffer("emitters", &g.emitters)?,
-            ctx.storage_buffer("leaf-order triangles", &g.leaf_triangles)?,
+        // Every array is checked before the first buffer is made, so that a scene too large
+        // for one binding allocates nothing on the device.
+        let arrays = [
+            pod_array("spheres", &g.spheres),
+            pod_array("cylinders", &g.cylinders),
+            pod_array("planes", &g.planes),
+            pod_array("triangles", &g.triangles),
+            pod_array("BVH nodes", &g.nodes),
+            pod_array("shape references", &g.shape_refs),
+            pod_array("materials", &g.materials),
+            pod_array("lights", &g.lights),
+            pod_array("emitters", &g.emitters),
+            pod_array("leaf-order triangles", &g.leaf_triangles),
         ];
+        for a in &arrays {
+            ctx.check_binding_size(a.what, a.bytes.len() as u64)?;
+        }
+        let buffers = arrays.map(|a| ctx.storage_bytes(a.what, a.bytes, a.element));
         let frame = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
             size: std::mem::size_of::<GpuFrame>() as u64,
@@ -410,6 +418,17 @@ impl SceneBuffers {
     pub fn runs_with(&self, key: FeatureKey) -> bool {
         (key.0 & self.key.0) == self.key.0 && (!key.has(FeatureKey::BVH) || self.has_bvh)
     }
+}
+
+/// One scene array as bytes, named for errors, with its element size.
+struct PodArray<'a> {
+    what: &'static str,
+    bytes: &'a [u8],
+    element: usize,
+}
+
+fn pod_array<'a, T: bytemuck::Pod>(what: &'static str, data: &'a [T]) -> PodArray<'a> {
+    PodArray { what, bytes: bytemuck::cast_slice(data), element: std::mem::size_of::<T>() }
 }
 
 #[cfg(test)]
