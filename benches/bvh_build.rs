@@ -1,5 +1,5 @@
 //! BVH build time and nearest-hit traversal speed on the bumpy torus of the Embree anchor
-//! (the Embree 4 comparison script, `embree_bench.py`, kept with the benchmark figures outside this repository): the same generator, the same sizes (250 × 200 quads =
+//! (`embree_bench.py`, the Embree 4 comparison): the same generator, the same sizes (250 × 200 quads =
 //! 100k triangles, 1000 × 500 = 1M) and the same two ray sets (`strahl::raysets`).
 //!
 //! `cargo bench --bench bvh_build`. Groups:

@@ -1,5 +1,5 @@
 //! The ray sets of `strahl bench rays` and `benches/bvh_build.rs`, made as the Embree anchor
-//! benchmark (the Embree 4 comparison script, `embree_bench.py`, kept with the benchmark figures outside this repository) makes its own: camera rays (coherent) and
+//! benchmark (`embree_bench.py`, the Embree 4 comparison) makes its own: camera rays (coherent) and
 //! random rays (incoherent).
 
 use crate::math::{Ray, V3};

@@ -1,6 +1,6 @@
 //! Scenes made without a scene file: the bumpy torus at any size (millions of triangles,
 //! nothing to download) seen by the camera of the Embree anchor benchmark
-//! (the Embree 4 comparison script, `embree_bench.py`, kept with the benchmark figures outside this repository), and a bare OBJ mesh with the camera file that script's
+//! (`embree_bench.py`, the Embree 4 comparison), and a bare OBJ mesh with the camera file that script's
 //! `--export-obj` writes beside it. Benchmarks and tests use these to work on big scenes.
 
 use super::mesh::{self, Transform, bumpy_torus};
