@@ -17,6 +17,12 @@
 #ifdef LIGHTS
 #import strahl::emitters::delta_light
 #endif
+#ifdef TEXTURES
+#import strahl::texture::textured
+#endif
+#ifdef ENVIRONMENT
+#import strahl::environment::{env_background, env_pdf}
+#endif
 
 @group(1) @binding(0) var<storage, read_write> output: array<vec4<f32>>;
 
@@ -46,10 +52,23 @@ fn path_radiance(origin: vec3<f32>, dir: vec3<f32>, rng: ptr<function, u32>) -> 
     for (var seg = 1u; seg <= frame.max_depth; seg += 1u) {
         let hit = nearest_hit(o, d, 0.0, F32_MAX);
         if !hit.found {
+#ifdef ENVIRONMENT
+            // Weighted against next-event estimation's samples of the environment.
+            var w = 1.0;
+            if !specular {
+                w = power_heuristic(pdf_bsdf, env_pdf(d));
+            }
+            sum += beta * env_background(d) * w;
+#else
             sum += beta * frame.background;
+#endif
             break;
         }
+#ifdef TEXTURES
+        let m = textured(materials[hit_material(hit)], hit.prim, o + d * hit.t);
+#else
         let m = materials[hit_material(hit)];
+#endif
         let n = hit_normal(hit, o, d);
         let front = dot(d, n) < 0.0;
         let ns = select(-n, n, front);

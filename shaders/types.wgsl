@@ -95,8 +95,39 @@ struct Material {
     ior: f32,
     roughness: f32,
     flags: u32,
+    // 1 + index in `textures` of the image multiplying color / radiance; 0: none.
+    color_texture: u32,
+    radiance_texture: u32,
+}
+
+// An image in `texels` (gpu_types::GpuTexture).
+struct TextureInfo {
+    width: u32,
+    height: u32,
+    offset: u32,
+    flags: u32,
+}
+
+// Texture coordinates of a triangle's vertices (gpu_types::GpuTriangleUv).
+struct TriangleUv {
+    a: vec2<f32>,
+    b: vec2<f32>,
+    c: vec2<f32>,
+}
+
+// The environment (gpu_types::GpuEnvironment).
+struct Environment {
+    radiance: vec3<f32>,
+    flags: u32,
+    rot_cos: f32,
+    rot_sin: f32,
+    texture: u32,
+    select_prob: f32,
+    width: u32,
+    height: u32,
     pad_a: u32,
     pad_b: u32,
+    sh: array<vec4<f32>, 9>,
 }
 
 struct Light {
@@ -164,6 +195,18 @@ const MATERIAL_TWO_SIDED: u32 = 1u;
 const EMITTER_AREA: u32 = 0u;
 
 const FRAME_ACCUMULATE: u32 = 1u;
+const FRAME_ENVIRONMENT: u32 = #{FRAME_ENVIRONMENT}u;
+
+// Texture flags and wrap modes (gpu_types, scene::texture::Wrap).
+const TEXTURE_WRAP_U_SHIFT: u32 = #{TEXTURE_WRAP_U_SHIFT}u;
+const TEXTURE_WRAP_V_SHIFT: u32 = #{TEXTURE_WRAP_V_SHIFT}u;
+const TEXTURE_NEAREST: u32 = #{TEXTURE_NEAREST}u;
+const TEXTURE_LINEAR_RGB: u32 = #{TEXTURE_LINEAR_RGB}u;
+const WRAP_REPEAT: u32 = #{WRAP_REPEAT}u;
+const WRAP_CLAMP: u32 = #{WRAP_CLAMP}u;
+const WRAP_MIRROR: u32 = #{WRAP_MIRROR}u;
+const ENV_MAP: u32 = #{ENV_FLAG_MAP}u;
+const ENV_UNIFORM: u32 = #{ENV_FLAG_UNIFORM}u;
 const QUERY_FOUND: u32 = 1u;
 const QUERY_ENTER: u32 = 2u;
 

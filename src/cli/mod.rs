@@ -97,6 +97,14 @@ fn file_name_with(s: &str, extensions: &[&str], hint: &str) -> Result<PathBuf, S
     }
 }
 
+/// What loading a scene read but did not use (skipped glTF primitives, unsupported
+/// extensions...), one `warning:` line each on stderr.
+pub fn print_scene_warnings(scene: &strahl::scene::Scene) {
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+}
+
 /// A progress bar on stderr for `len` steps (hidden when stderr is not a terminal).
 pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new(len);
@@ -109,8 +117,9 @@ pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
     bar
 }
 
-/// The one-line summary of a prepared scene, on stderr.
+/// The one-line summary of a prepared scene, on stderr, after what loading it warned about.
 pub fn print_scene_summary(prep: &strahl::render::Prepared) {
+    print_scene_warnings(&prep.scene);
     eprintln!(
         "scene: {} objects, {} triangles, BVH {} nodes (depth {}) built in {:.3} s",
         prep.scene.objects.len(),

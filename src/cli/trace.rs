@@ -47,6 +47,7 @@ pub fn run(a: TraceArgs) -> Result<()> {
         strahl::output::check_file_target(path)?;
     }
     let scene = Scene::load(&a.scene)?;
+    super::print_scene_warnings(&scene);
     let rays = read_rays(&a.rays)?;
     let start = Instant::now();
     let csv = match (a.backend, a.precision) {

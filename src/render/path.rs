@@ -16,9 +16,11 @@
 use super::bsdf::{self, is_specular};
 use super::camera::ray_through;
 use super::emitters::{self, area_pdf, emitted_cos};
+use super::environment;
 use super::sampler::{Sampler, pixel_jitter};
 use super::shade::ShadeInputs;
 use super::spawn::spawn_origin;
+use super::texture;
 use crate::accel::traverse;
 use crate::math::{Ray, V3};
 use crate::primitives::PrimKind;
@@ -64,10 +66,13 @@ pub fn radiance(inp: &ShadeInputs, mut ray: Ray<f32>, rng: &mut Sampler) -> V3<f
     let mut pdf_bsdf = 0.0f32;
     for seg in 1..=f.max_depth {
         let Some(hit) = traverse::nearest(inp.bvh, inp.prims, &ray, 0.0, f32::INFINITY) else {
-            sum += beta.mul_elem(V3::from_array(f.background));
+            // The environment (or the background), weighted against next-event estimation's
+            // samples of it.
+            let w = if specular { 1.0 } else { power_heuristic(pdf_bsdf, environment::pdf(g, ray.dir)) };
+            sum += beta.mul_elem(environment::background(g, f, ray.dir)) * w;
             break;
         };
-        let m = &g.materials[hit.tag.material as usize];
+        let m = &texture::textured(g, &g.materials[hit.tag.material as usize], hit.prim, ray.at(hit.t));
         let front = ray.dir.dot(hit.normal) < 0.0;
         let ns = if front { hit.normal } else { -hit.normal };
         if m.kind == MaterialKind::Emissive as u32 {

@@ -13,6 +13,10 @@ pub enum SceneError {
     /// A problem in a mesh file an object refers to.
     #[error("{path}:{line}:{column}: {field}: mesh {mesh}: {message}")]
     Mesh { path: PathBuf, line: usize, column: usize, field: String, mesh: PathBuf, message: String },
+    /// A problem in a glTF file given on its own; the message starts with the glTF path
+    /// (`meshes[2].primitives[0].indices: ...`).
+    #[error("{path}: {message}")]
+    Gltf { path: PathBuf, message: String },
     /// The scene is valid but larger than strahl accepts.
     #[error("{path}: {message}")]
     TooLarge { path: PathBuf, message: String },

@@ -55,6 +55,9 @@ fn upload(ctx: &GpuContext, prims: &Primitives<f32>) -> Result<SceneBuffers, Gpu
         materials: vec![Material::default_grey()],
         objects: Vec::new(),
         lights: Vec::new(),
+        textures: Vec::new(),
+        environment: None,
+        warnings: Vec::new(),
     };
     SceneBuffers::upload(ctx, &GpuScene::new(&scene, prims, &Bvh::build(prims)))
 }
@@ -773,9 +776,12 @@ pub fn scaled(scene: &Scene, s: f64) -> Scene {
                 vertices: vertices.iter().map(|&v| v * s).collect(),
                 triangles: triangles.iter().map(tri).collect(),
             },
-            Geometry::Mesh { file, triangles } => {
-                Geometry::Mesh { file: file.clone(), triangles: triangles.iter().map(tri).collect() }
-            }
+            Geometry::Mesh { file, triangles, uvs, materials } => Geometry::Mesh {
+                file: file.clone(),
+                triangles: triangles.iter().map(tri).collect(),
+                uvs: uvs.clone(),
+                materials: materials.clone(),
+            },
         };
     }
     for l in &mut out.lights {

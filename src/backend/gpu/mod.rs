@@ -36,6 +36,9 @@ pub enum GpuError {
     Wgpu(String),
 }
 
+/// Storage buffers of bind group 0 (`shaders/bindings.wgsl`): the frame and the scene's.
+pub const SCENE_BINDINGS: u32 = 16;
+
 /// A pipeline is specialised by its program, the scene's features and its entry point.
 type PipelineKey = (Program, FeatureKey, &'static str);
 
@@ -117,9 +120,11 @@ impl GpuContext {
         adapter_info: wgpu::AdapterInfo,
     ) -> Result<Self, GpuError> {
         let limits = device.limits();
-        if limits.max_storage_buffers_per_shader_stage < 13 {
+        // The scene's buffers and the trace program's three.
+        let needed = SCENE_BINDINGS + 3;
+        if limits.max_storage_buffers_per_shader_stage < needed {
             return Err(GpuError::Device(format!(
-                "strahl needs 13 storage buffers per shader stage, this device offers {}",
+                "strahl needs {needed} storage buffers per shader stage, this device offers {}",
                 limits.max_storage_buffers_per_shader_stage
             )));
         }
@@ -127,7 +132,7 @@ impl GpuContext {
         let device_flags =
             if device.features().contains(wgpu::Features::SHADER_INT64) { FeatureKey::LOAD64 } else { 0 };
         // Binding 0 is the frame: storage, not uniform (see shaders/bindings.wgsl).
-        let scene_entries: Vec<_> = (0..=10).map(|b| storage_entry(b, true)).collect();
+        let scene_entries: Vec<_> = (0..SCENE_BINDINGS).map(|b| storage_entry(b, true)).collect();
         let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),
             entries: &scene_entries,
@@ -306,6 +311,14 @@ impl SceneBuffers {
         if g.bounded_count() > MAX_PRIMS {
             return Err(GpuError::TooManyPrimitives { count: g.bounded_count(), limit: MAX_PRIMS });
         }
+        // The buffers images can make large, checked before any is allocated.
+        let bytes = |n: usize, size: usize| (n * size) as u64;
+        ctx.check_binding_size(
+            "texels (every image of the scene: textures and environment map)",
+            bytes(g.texels.len(), 4),
+        )?;
+        ctx.check_binding_size("triangle texture coordinates", bytes(g.triangle_uvs.len(), 24))?;
+        ctx.check_binding_size("environment map distribution", bytes(g.env_distribution.len(), 4))?;
         let buffers = [
             ctx.storage_buffer("spheres", &g.spheres)?,
             ctx.storage_buffer("cylinders", &g.cylinders)?,
@@ -317,6 +330,11 @@ impl SceneBuffers {
             ctx.storage_buffer("lights", &g.lights)?,
             ctx.storage_buffer("emitters", &g.emitters)?,
             ctx.storage_buffer("leaf-order triangles", &g.leaf_triangles)?,
+            ctx.storage_buffer("texture table", &g.textures)?,
+            ctx.storage_buffer("texels (every image of the scene: textures and environment map)", &g.texels)?,
+            ctx.storage_buffer("triangle texture coordinates", &g.triangle_uvs)?,
+            ctx.storage_buffer("environment", &g.environment)?,
+            ctx.storage_buffer("environment map distribution", &g.env_distribution)?,
         ];
         let frame = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
