@@ -7,8 +7,6 @@ use common::gpu;
 use std::path::Path;
 use std::sync::Arc;
 use strahl::backend::cpu;
-use strahl::backend::gpu::{GpuContext, SceneBuffers, render::Progressive};
-use strahl::gpu_types::GpuFrame;
 use strahl::image::Image;
 use strahl::render::Prepared;
 use strahl::scene::{RenderMode, Scene, file::parse};
@@ -56,24 +54,10 @@ material = "furnace"
 /// (pixels are independent estimates).
 fn mean_and_error(img: &Image) -> (f64, f64) {
     let v: Vec<f64> = img.pixels.iter().map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / 3.0).collect();
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    let var = v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
-    (mean, (var / n).sqrt())
+    common::mean_and_error(&v)
 }
 
-fn cpu_image(prep: &Arc<Prepared>, frame: GpuFrame, spp: u32) -> Image {
-    let mut p = cpu::Progressive::new(prep.clone(), frame);
-    p.add_samples(spp);
-    p.image()
-}
-
-fn gpu_image(ctx: &Arc<GpuContext>, prep: &Prepared, frame: GpuFrame, spp: u32) -> Image {
-    let buffers = SceneBuffers::upload(ctx, &prep.gpu).unwrap();
-    let mut p = Progressive::new(ctx.clone(), buffers, frame).unwrap();
-    p.add_samples(spp).unwrap();
-    p.image().unwrap()
-}
+use common::{cpu_path_image as cpu_image, gpu_path_image as gpu_image};
 
 fn check_furnace(what: &str, img: &Image, expected: f64) {
     assert_eq!(img.non_finite_count(), 0);
