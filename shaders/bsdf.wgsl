@@ -8,7 +8,7 @@
 
 const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.31830988618379067;
-const MIN_ROUGHNESS: f32 = 1e-3;
+const MIN_ROUGHNESS: f32 = #{MIN_ROUGHNESS};
 
 struct BsdfSample {
     dir: vec3<f32>,

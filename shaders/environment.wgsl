@@ -8,7 +8,7 @@
 #define_import_path strahl::environment
 
 #ifdef ENVIRONMENT
-#import strahl::types::{Environment, FRAME_ENVIRONMENT, ENV_MAP, ENV_UNIFORM}
+#import strahl::types::{Environment, FRAME_ENVIRONMENT, ENV_FLAG_MAP, ENV_FLAG_UNIFORM}
 #import strahl::bindings::{frame, environment}
 #ifdef ENV_MAP
 #import strahl::bindings::{env_distribution, textures}
@@ -73,7 +73,7 @@ fn env_background(d: vec3<f32>) -> vec3<f32> {
     }
     let e = environment[0];
 #ifdef ENV_MAP
-    if (e.flags & ENV_MAP) != 0u {
+    if (e.flags & ENV_FLAG_MAP) != 0u {
         return e.radiance * texture_sample(textures[e.texture], map_uv(e, d));
     }
 #endif
@@ -86,7 +86,7 @@ fn env_pdf(d: vec3<f32>) -> f32 {
         return 0.0;
     }
     let e = environment[0];
-    if (e.flags & ENV_UNIFORM) != 0u {
+    if (e.flags & ENV_FLAG_UNIFORM) != 0u {
         return e.select_prob * (0.25 / PI);
     }
 #ifdef ENV_MAP
@@ -110,7 +110,7 @@ fn env_sample(u1: f32, u2: f32) -> EnvSample {
     let e = environment[0];
     var d: vec3<f32>;
     var pdf: f32;
-    if (e.flags & ENV_UNIFORM) != 0u {
+    if (e.flags & ENV_FLAG_UNIFORM) != 0u {
         let z = 1.0 - 2.0 * u1;
         let r = sqrt(max(1.0 - z * z, 0.0));
         let phi = 2.0 * PI * u2;

@@ -6,7 +6,7 @@
 
 @group(1) @binding(0) var<storage, read_write> output: array<vec4<f32>>;
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(#{TILE_WORKGROUP}, #{TILE_WORKGROUP}, 1)
 fn render(@builtin(global_invocation_id) gid: vec3<u32>) {
     let px = tile_pixel(frame, gid);
     if px.z == 0u {

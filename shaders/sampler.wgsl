@@ -5,8 +5,8 @@
 
 #import strahl::raygen::sample_offset
 
-const PCG_MULT: u32 = 747796405u;
-const PCG_INC: u32 = 2891336453u;
+const PCG_MULT: u32 = #{PCG_MULT};
+const PCG_INC: u32 = #{PCG_INC};
 
 fn pcg_permute(state: u32) -> u32 {
     let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;

@@ -18,10 +18,10 @@
 #endif
 
 // Depth of the explicit ray stack (render::shade::WHITTED_STACK).
-const WHITTED_STACK: u32 = 16u;
+const WHITTED_STACK: u32 = #{WHITTED_STACK};
 // Traversals a shadow ray may make: it crosses at most SHADOW_PASSES - 1 dielectric surfaces
 // (render::shade::SHADOW_PASSES).
-const SHADOW_PASSES: u32 = 8u;
+const SHADOW_PASSES: u32 = #{SHADOW_PASSES};
 const INV_PI: f32 = 0.31830988618379067;
 
 struct Pending {

@@ -10,7 +10,7 @@ fn ulp_of(m: f32) -> f32 {
 }
 
 // The smallest ULP used: that of the smallest normal f32, 2^-126 (render::spawn::MIN_ULP).
-const MIN_ULP: f32 = 1.17549435e-38;
+const MIN_ULP: f32 = #{MIN_ULP};
 
 fn offset_component(p: f32, o: f32, t: f32, n: f32) -> f32 {
     let m = max(max(abs(o) + abs(t), abs(p)), MIN_ULP);

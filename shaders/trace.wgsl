@@ -33,7 +33,7 @@
 @group(1) @binding(1) var<storage, read_write> hits: array<QueryHit>;
 @group(1) @binding(2) var<storage, read_write> offsets: array<u32>;
 
-const WORKGROUP: u32 = 64u;
+const WORKGROUP: u32 = #{TRACE_WORKGROUP};
 
 fn make_hit(r: u32, o: vec3<f32>, d: vec3<f32>, t: f32, part: u32) -> QueryHit {
     let n = prim_normal(r, o, d, t, part);

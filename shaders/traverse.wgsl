@@ -41,9 +41,9 @@
 #endif
 
 // Entries of the traversal stack: the deepest tree the host collapses (accel::gpu_bvh::MAX_DEPTH).
-const GPU_STACK: u32 = #{GPU_STACK}u;
+const GPU_STACK: u32 = #{GPU_STACK};
 // 1 + 2 gamma(3) in f32, the far-distance growth of the slab test (pbrt-v3 3.9.2).
-const SLAB_GROW: f32 = 1.00000036;
+const SLAB_GROW: f32 = #{SLAB_GROW};
 
 struct Nearest {
     t: f32,

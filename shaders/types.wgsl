@@ -163,53 +163,51 @@ struct QueryHit {
 // Child links of Node (accel::gpu_bvh): an inner node's index, or a leaf: LINK_LEAF, LINK_SHAPES
 // for spheres and cylinders (shape_refs) else triangles (leaf_triangles), count - 1 from bit
 // LINK_COUNT_SHIFT, first primitive in the low bits. LINK_EMPTY: no child / no node.
-const LINK_LEAF: u32 = #{LINK_LEAF}u;
-const LINK_SHAPES: u32 = #{LINK_SHAPES}u;
-const LINK_COUNT_SHIFT: u32 = #{LINK_COUNT_SHIFT}u;
-const LINK_FIRST_MASK: u32 = #{LINK_FIRST_MASK}u;
-const LINK_EMPTY: u32 = #{LINK_EMPTY}u;
+const LINK_LEAF: u32 = #{LINK_LEAF};
+const LINK_SHAPES: u32 = #{LINK_SHAPES};
+const LINK_COUNT_SHIFT: u32 = #{LINK_COUNT_SHIFT};
+const LINK_FIRST_MASK: u32 = #{LINK_FIRST_MASK};
+const LINK_EMPTY: u32 = #{LINK_EMPTY};
 
 // PrimRef: kind in bits 30-31 (src/primitives.rs).
-const KIND_SPHERE: u32 = 0u;
-const KIND_CYLINDER: u32 = 1u;
-const KIND_TRIANGLE: u32 = 2u;
-const KIND_PLANE: u32 = 3u;
-const INDEX_BITS: u32 = 30u;
-const INDEX_MASK: u32 = 0x3fffffffu;
+const KIND_SPHERE: u32 = #{KIND_SPHERE};
+const KIND_CYLINDER: u32 = #{KIND_CYLINDER};
+const KIND_TRIANGLE: u32 = #{KIND_TRIANGLE};
+const KIND_PLANE: u32 = #{KIND_PLANE};
+const INDEX_BITS: u32 = #{INDEX_BITS};
+const INDEX_MASK: u32 = #{INDEX_MASK};
 
 // Part of a surface (geometry::Part).
-const PART_SURFACE: u32 = 0u;
-const PART_CAP_P1: u32 = 1u;
-const PART_CAP_P2: u32 = 2u;
+const PART_SURFACE: u32 = #{PART_SURFACE};
+const PART_CAP_P1: u32 = #{PART_CAP_P1};
+const PART_CAP_P2: u32 = #{PART_CAP_P2};
 
-// MaterialKind.
-const MAT_DIFFUSE: u32 = 0u;
-const MAT_MIRROR: u32 = 1u;
-const MAT_DIELECTRIC: u32 = 2u;
-const MAT_EMISSIVE: u32 = 3u;
+// MaterialKind (every other kind is diffuse).
+const MAT_MIRROR: u32 = #{MAT_MIRROR};
+const MAT_DIELECTRIC: u32 = #{MAT_DIELECTRIC};
+const MAT_EMISSIVE: u32 = #{MAT_EMISSIVE};
 
-const LIGHT_POINT: u32 = 0u;
-const LIGHT_DIRECTIONAL: u32 = 1u;
-const LIGHT_STAND_IN: u32 = 1u;
-const MATERIAL_TWO_SIDED: u32 = 1u;
-const EMITTER_AREA: u32 = 0u;
+const LIGHT_POINT: u32 = #{LIGHT_POINT};
+const LIGHT_STAND_IN: u32 = #{LIGHT_STAND_IN};
+const MATERIAL_TWO_SIDED: u32 = #{MATERIAL_TWO_SIDED};
 
-const FRAME_ACCUMULATE: u32 = 1u;
-const FRAME_ENVIRONMENT: u32 = #{FRAME_ENVIRONMENT}u;
+const FRAME_ACCUMULATE: u32 = #{FRAME_ACCUMULATE};
+const FRAME_ENVIRONMENT: u32 = #{FRAME_ENVIRONMENT};
+const QUERY_FOUND: u32 = #{QUERY_FOUND};
+const QUERY_ENTER: u32 = #{QUERY_ENTER};
 
 // Texture flags and wrap modes (gpu_types, scene::texture::Wrap).
-const TEXTURE_WRAP_U_SHIFT: u32 = #{TEXTURE_WRAP_U_SHIFT}u;
-const TEXTURE_WRAP_V_SHIFT: u32 = #{TEXTURE_WRAP_V_SHIFT}u;
-const TEXTURE_NEAREST: u32 = #{TEXTURE_NEAREST}u;
-const TEXTURE_LINEAR_RGB: u32 = #{TEXTURE_LINEAR_RGB}u;
-const WRAP_REPEAT: u32 = #{WRAP_REPEAT}u;
-const WRAP_CLAMP: u32 = #{WRAP_CLAMP}u;
-const WRAP_MIRROR: u32 = #{WRAP_MIRROR}u;
-const ENV_MAP: u32 = #{ENV_FLAG_MAP}u;
-const ENV_UNIFORM: u32 = #{ENV_FLAG_UNIFORM}u;
-const QUERY_FOUND: u32 = 1u;
-const QUERY_ENTER: u32 = 2u;
+const TEXTURE_WRAP_U_SHIFT: u32 = #{TEXTURE_WRAP_U_SHIFT};
+const TEXTURE_WRAP_V_SHIFT: u32 = #{TEXTURE_WRAP_V_SHIFT};
+const TEXTURE_NEAREST: u32 = #{TEXTURE_NEAREST};
+const TEXTURE_LINEAR_RGB: u32 = #{TEXTURE_LINEAR_RGB};
+const WRAP_REPEAT: u32 = #{WRAP_REPEAT};
+const WRAP_CLAMP: u32 = #{WRAP_CLAMP};
+const WRAP_MIRROR: u32 = #{WRAP_MIRROR};
+// Environment flags (gpu_types::ENV_MAP, ENV_UNIFORM; ENV_MAP names a feature's shader def).
+const ENV_FLAG_MAP: u32 = #{ENV_FLAG_MAP};
+const ENV_FLAG_UNIFORM: u32 = #{ENV_FLAG_UNIFORM};
 
 // The largest f32: stands for "no upper bound" (WGSL cannot spell infinity). Roots are
 // compared with `t < tmax`, so FLT_MAX and +inf reject exactly the same values.
-const F32_MAX: f32 = 3.40282347e38;
+const F32_MAX: f32 = #{F32_MAX};

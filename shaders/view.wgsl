@@ -19,7 +19,7 @@ const VIEW_NORMALS: u32 = 1u;
 const VIEW_DEPTH: u32 = 2u;
 const VIEW_COST: u32 = 3u;
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(#{TILE_WORKGROUP}, #{TILE_WORKGROUP}, 1)
 fn view(@builtin(global_invocation_id) gid: vec3<u32>) {
     let px = tile_pixel(frame, gid);
     if px.z == 0u {

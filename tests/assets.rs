@@ -368,6 +368,81 @@ intensity = [3.14159265, 3.14159265, 3.14159265]
     }
 }
 
+/// An emitter with a uniform grey emission texture is the same light as an untextured one of
+/// the texture's value times its radiance: path tracing gives the same image for the same random
+/// numbers (one emitter, so both are sampled with the same density), on both backends. A diffuse
+/// floor sees the emitter both through light samples and through BSDF samples: the MIS weight of
+/// the latter must use the density the light was sampled with (by its untextured radiance), or
+/// the two weights no longer sum to one and the image comes out brighter.
+#[test]
+fn a_textured_emitter_is_lit_like_its_untextured_twin() {
+    let dir = tempfile::tempdir().unwrap();
+    image::RgbImage::from_pixel(2, 2, image::Rgb([188, 188, 188])).save(dir.path().join("grey.png")).unwrap();
+    std::fs::write(
+        dir.path().join("panel.obj"),
+        "v -1 1 -1\nv 1 1 -1\nv 1 1 1\nv -1 1 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n",
+    )
+    .unwrap();
+    let grey = srgb_to_linear(188) as f64;
+    let scene = |emission: &str| {
+        let toml = format!(
+            r#"
+[camera]
+eye = [0.0, 1.5, -3.0]
+look_at = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 60.0
+[image]
+width = 16
+height = 16
+[render]
+mode = "path"
+max_depth = 3
+background = [0.0, 0.0, 0.0]
+[[materials]]
+name = "floor"
+type = "diffuse"
+color = [0.8, 0.8, 0.8]
+[[materials]]
+name = "panel"
+type = "emissive"
+two_sided = true
+{emission}
+[[objects]]
+type = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 1.0, 0.0]
+material = "floor"
+[[objects]]
+type = "mesh"
+file = "panel.obj"
+material = "panel"
+"#
+        );
+        let path = dir.path().join("emitter.toml");
+        std::fs::write(&path, toml).unwrap();
+        Arc::new(Prepared::new(Scene::load(&path).unwrap_or_else(|e| panic!("{e}"))))
+    };
+    let textured = scene("radiance = [4.0, 4.0, 4.0]\nradiance_texture = \"grey.png\"");
+    let plain = scene(&format!("radiance = [{0}, {0}, {0}]", 4.0 * grey));
+    let frame = textured.frame(16, 16);
+    let mut images = vec![("cpu", cpu_path_image(&textured, frame, 16), cpu_path_image(&plain, frame, 16))];
+    if let Some(ctx) = gpu().map(Arc::new) {
+        images.push(("gpu", gpu_path_image(&ctx, &textured, frame, 16), gpu_path_image(&ctx, &plain, frame, 16)));
+    }
+    for (backend, a, b) in images {
+        let (mut sum_a, mut worst) = (0.0f64, 0.0f64);
+        for (p, q) in a.pixels.iter().zip(&b.pixels) {
+            for c in 0..3 {
+                sum_a += p[c] as f64;
+                worst = worst.max((p[c] as f64 - q[c] as f64).abs() / (q[c] as f64).max(1e-3));
+            }
+        }
+        assert!(sum_a > 0.0, "{backend}: the floor is lit");
+        assert!(worst < 1e-4, "{backend}: textured and plain emitters differ by up to {worst:.2e} (relative)");
+    }
+}
+
 /// Bad files: an error naming the file and the glTF path, never a panic.
 #[test]
 fn bad_gltf_files_name_the_file_and_the_path() {

@@ -1,26 +1,55 @@
-//! `strahl bench`: what specialising a shader to its scene buys, on the adapter at hand.
+//! `strahl bench`: how fast each backend renders, on the machine at hand, in one run.
 //!
-//! For each scene it measures, for the scene's specialised shader and for the all-features
-//! shader: compile time (composition, pipeline creation, and the first dispatch, where
-//! lavapipe's JIT compiles), each in a child process whose Mesa shader disk cache is an empty
-//! folder so that nothing compiled before is reused; and frame time (median of `--frames` renders after the first), then the CPU
-//! backend's frame time for scale. Ratios are measured in one run: compare them, not the
-//! absolute times, across machines. Without a Vulkan adapter it says so and measures the CPU
-//! alone.
+//! For each scene and mode:
+//! - Whitted (primary rays per second): the GPU with the scene's specialised shader and with
+//!   the all-features shader, each with its compile time (composition, pipeline creation and the
+//!   first dispatch, where lavapipe's JIT compiles, measured in a child process whose Mesa shader
+//!   disk cache is an empty folder) and its median frame time; then the CPU backend.
+//! - Path tracing (pixel samples per second, `--spp` samples per pixel a frame): the GPU's
+//!   megakernel and wavefront tracers, each with its pipelines compiled before timing and the
+//!   time of each kernel from timestamp queries where the adapter has them, then the CPU
+//!   backend.
+//!
+//! Frame times are medians of `--frames` frames after one untimed frame, wall clock, on both
+//! backends. Ratios are measured in one run: compare them, not absolute times, across machines
+//! (here the second CPU core comes and goes). Without a Vulkan adapter the CPU alone is
+//! measured. `--json` prints one JSON object instead of the tables.
 
 use anyhow::{Context, Result, bail};
-use clap::Args;
-use std::path::PathBuf;
+use clap::{Args, ValueEnum};
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
-use strahl::backend::gpu::{FeatureKey, GpuContext, SceneBuffers, render::render};
+use strahl::backend::gpu::render::{Progressive, render, render_tiles};
+use strahl::backend::gpu::wavefront::Wavefront;
+use strahl::backend::gpu::{FeatureKey, GpuContext, PathKernels, SceneBuffers};
+use strahl::gpu_types::GpuFrame;
 use strahl::render::Prepared;
-use strahl::scene::Scene;
+use strahl::scene::{RenderMode, Scene};
+
+/// The scenes measured when none are named, in the repository's `assets/scenes`.
+const DEFAULT_SCENES: [&str; 2] = ["seed.toml", "spheres.toml"];
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BenchMode {
+    Whitted,
+    Path,
+    Both,
+}
 
 #[derive(Args, Debug)]
 pub struct BenchArgs {
-    /// Scene files (default: assets/scenes/seed.toml and assets/scenes/spheres.toml).
+    /// Scene files (default: seed.toml and spheres.toml of the repository's assets/scenes,
+    /// found from the working directory or from where strahl was built).
     pub scenes: Vec<PathBuf>,
-    /// Timed frames per variant (after one untimed frame).
+    /// Which renderers to measure.
+    #[arg(long, value_enum, default_value_t = BenchMode::Both)]
+    pub mode: BenchMode,
+    /// Path tracing: samples per pixel of one frame.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub spp: u32,
+    /// Timed frames per measurement (after one untimed frame).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub frames: u32,
     /// Image width (default: the scene's).
@@ -29,18 +58,15 @@ pub struct BenchArgs {
     /// Image height (default: the scene's).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub height: Option<u32>,
+    /// Skip the compile-time measurements (each compiles in a child process, seconds apiece).
+    #[arg(long)]
+    pub no_compile: bool,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    pub json: bool,
     /// Internal: measure the compile time of one variant (feature key bits) and print it.
     #[arg(long, hide = true)]
     pub compile_only: Option<u32>,
-}
-
-struct Row {
-    scene: String,
-    variant: String,
-    key: String,
-    compile: Duration,
-    frame: Duration,
-    mrays: f64,
 }
 
 pub fn run(a: BenchArgs) -> Result<()> {
@@ -57,17 +83,37 @@ pub fn run(a: BenchArgs) -> Result<()> {
     }
 }
 
+/// The scenes to measure: those named, else the defaults, looked up in `assets/scenes` under
+/// the working directory, then under the folder strahl was built from.
+fn scenes(named: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    if !named.is_empty() {
+        return Ok(named.to_vec());
+    }
+    let roots = [PathBuf::from("."), PathBuf::from(env!("CARGO_MANIFEST_DIR"))];
+    for root in roots {
+        let dir = root.join("assets/scenes");
+        if DEFAULT_SCENES.iter().all(|s| dir.join(s).is_file()) {
+            return Ok(DEFAULT_SCENES.iter().map(|s| dir.join(s)).collect());
+        }
+    }
+    bail!(
+        "no scene files given, and the default scenes ({}) are not in ./assets/scenes nor in {}/assets/scenes: name scene files",
+        DEFAULT_SCENES.join(", "),
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
 /// Pipeline creation plus the first dispatch (one 8x8 tile), where lavapipe compiles.
 fn first_dispatch(ctx: &GpuContext, buffers: &SceneBuffers, prep: &Prepared, key: FeatureKey) -> Result<Duration> {
     let start = Instant::now();
     let tiny = prep.frame(8, 8);
-    render(ctx, buffers, &tiny, strahl::scene::RenderMode::Whitted, key, &|_, _| {})?;
+    render(ctx, buffers, &tiny, RenderMode::Whitted, key, &|_, _| {})?;
     Ok(start.elapsed())
 }
 
 /// Compile time of `key` for `scene`, measured in a child process with an empty Mesa shader
 /// cache.
-fn compile_in_child(scene: &std::path::Path, key: FeatureKey) -> Result<Duration> {
+fn compile_in_child(scene: &Path, key: FeatureKey) -> Result<Duration> {
     let cache = tempfile::tempdir().context("creating a shader cache folder")?;
     let out = std::process::Command::new(std::env::current_exe()?)
         .args(["bench", "--compile-only", &key.0.to_string()])
@@ -82,119 +128,298 @@ fn compile_in_child(scene: &std::path::Path, key: FeatureKey) -> Result<Duration
     Ok(Duration::from_secs_f64(secs))
 }
 
+/// Median wall time of `frames` calls of `f` after one untimed call.
+fn median_time(frames: u32, mut f: impl FnMut() -> Result<()>) -> Result<Duration> {
+    f()?;
+    let mut times = Vec::with_capacity(frames as usize);
+    for _ in 0..frames {
+        let start = Instant::now();
+        f()?;
+        times.push(start.elapsed());
+    }
+    times.sort();
+    Ok(times[times.len() / 2])
+}
+
+/// "1.52x faster" or "2.10x slower": `ratio` is the first rate over the second.
+fn faster_or_slower(ratio: f64) -> String {
+    if ratio >= 1.0 { format!("{ratio:.2}x faster") } else { format!("{:.2}x slower", 1.0 / ratio) }
+}
+
 fn bench(a: BenchArgs) -> Result<()> {
-    let scenes = if a.scenes.is_empty() {
-        vec![PathBuf::from("assets/scenes/seed.toml"), PathBuf::from("assets/scenes/spheres.toml")]
-    } else {
-        a.scenes.clone()
-    };
+    let scenes = scenes(&a.scenes)?;
     // Without a Vulkan adapter only the CPU backend is measured.
     let ctx = match GpuContext::new() {
-        Ok(ctx) => {
-            println!("adapter: {}", ctx.adapter_name());
-            Some(ctx)
-        }
+        Ok(ctx) => Some(Arc::new(ctx)),
         Err(e) => {
             eprintln!("gpu backend unavailable ({e}); measuring the cpu only");
-            println!("adapter: none (no GPU measured)");
             None
         }
     };
-    let mut rows = Vec::new();
+    let adapter = ctx.as_ref().map(|c| {
+        let i = &c.adapter_info;
+        json!({
+            "name": i.name,
+            "driver": i.driver,
+            "driver_info": i.driver_info,
+            "device_type": format!("{:?}", i.device_type),
+            "backend": format!("{:?}", i.backend),
+            "timestamps": c.timestamps,
+        })
+    });
+    let mut results = Vec::new();
     for path in &scenes {
         let prep = Prepared::new(Scene::load(path)?);
         let (w, h) = (a.width.unwrap_or(prep.scene.image.width), a.height.unwrap_or(prep.scene.image.height));
         super::check_image_size(w, h, a.width.is_some() || a.height.is_some())?;
-        let frame = prep.frame(w, h);
-        let rays = w as f64 * h as f64 * frame.spp as f64;
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        if let Some(ctx) = &ctx {
-            rows.extend(gpu_rows(ctx, path, &prep, &frame, &name, a.frames)?);
-        }
-        let start = Instant::now();
-        strahl::backend::cpu::render(&prep, &frame, strahl::scene::RenderMode::Whitted, &|_| {});
-        let cpu = start.elapsed();
-        rows.push(Row {
-            scene: name.clone(),
-            variant: format!("cpu ({} threads)", rayon::current_num_threads()),
-            key: "-".into(),
-            compile: Duration::ZERO,
-            frame: cpu,
-            mrays: rays / cpu.as_secs_f64() / 1e6,
+        let mut scene = json!({
+            "scene": name,
+            "width": w,
+            "height": h,
+            "triangles": prep.prims.triangles.len(),
         });
-    }
-    match &ctx {
-        Some(c) if c.timestamps => println!("frame time: median GPU time (timestamp queries); cpu: wall time"),
-        Some(_) => println!("frame time: median wall time; cpu: wall time"),
-        None => println!("frame time: wall time of one cpu render"),
-    }
-    println!("| scene | variant | compile s | frame ms | M primary rays/s | features |");
-    println!("|---|---|---|---|---|---|");
-    for r in &rows {
-        println!(
-            "| {} | {} | {:.3} | {:.1} | {:.3} | {} |",
-            r.scene,
-            r.variant,
-            r.compile.as_secs_f64(),
-            r.frame.as_secs_f64() * 1e3,
-            r.mrays,
-            r.key
-        );
-    }
-    for pair in rows.chunks(3) {
-        if let [spec, all, _] = pair {
-            println!(
-                "{}: the specialised shader compiles {:.2}x faster and renders {:.2}x faster than the all-features shader",
-                spec.scene,
-                all.compile.as_secs_f64() / spec.compile.as_secs_f64(),
-                all.frame.as_secs_f64() / spec.frame.as_secs_f64()
-            );
+        if a.mode != BenchMode::Path {
+            scene["whitted"] = bench_whitted(&a, ctx.as_deref(), path, &prep, w, h)?;
         }
+        if a.mode != BenchMode::Whitted {
+            scene["path"] = bench_path(&a, ctx.as_ref(), &prep, w, h)?;
+        }
+        results.push(scene);
+    }
+    let report = json!({
+        "adapter": adapter,
+        "cpu_threads": rayon::current_num_threads(),
+        "scenes": results,
+    });
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_report(&report);
     }
     Ok(())
 }
 
-/// The GPU rows of one scene (rendered as `frame`, `rays` primary rays a frame): its
-/// specialised shader and, unless that is it, the all-features shader, each with its compile
-/// time and median frame time.
-fn gpu_rows(
-    ctx: &GpuContext,
-    path: &std::path::Path,
+/// Whitted rows: the GPU's specialised and all-features shaders, then the CPU backend.
+fn bench_whitted(
+    a: &BenchArgs,
+    ctx: Option<&GpuContext>,
+    path: &Path,
     prep: &Prepared,
-    frame: &strahl::gpu_types::GpuFrame,
-    name: &str,
-    frames: u32,
-) -> Result<Vec<Row>> {
-    let rays = frame.width as f64 * frame.height as f64 * frame.spp as f64;
-    let buffers = SceneBuffers::upload(ctx, &prep.gpu)?;
-    let mut variants = vec![("specialised", buffers.key)];
-    if buffers.key != FeatureKey::ALL {
-        if !buffers.runs_with(FeatureKey::ALL) {
-            bail!("{name}: the all-features shader needs a scene with a BVH");
+    w: u32,
+    h: u32,
+) -> Result<Value> {
+    let frame = prep.frame(w, h);
+    let rays = w as f64 * h as f64 * frame.spp as f64;
+    let mut gpu = Vec::new();
+    if let Some(ctx) = ctx {
+        let buffers = SceneBuffers::upload(ctx, &prep.gpu)?;
+        let mut variants = vec![("specialised", buffers.key)];
+        if buffers.key != FeatureKey::ALL && buffers.runs_with(FeatureKey::ALL) {
+            variants.push(("all features", FeatureKey::ALL));
         }
-        variants.push(("all features", FeatureKey::ALL));
+        for (variant, key) in variants {
+            let compile = if a.no_compile { None } else { Some(compile_in_child(path, key)?.as_secs_f64()) };
+            first_dispatch(ctx, &buffers, prep, key)?;
+            let mut gpu_times = Vec::new();
+            let wall = median_time(a.frames, || {
+                let (_, stats) = render(ctx, &buffers, &frame, RenderMode::Whitted, key, &|_, _| {})?;
+                gpu_times.extend(stats.gpu_time);
+                Ok(())
+            })?;
+            gpu_times.sort();
+            gpu.push(json!({
+                "variant": variant,
+                "features": ctx.variant(strahl::backend::gpu::Program::Render, key).label(),
+                "compile_s": compile,
+                "frame_s": wall.as_secs_f64(),
+                "gpu_time_s": gpu_times.get(gpu_times.len() / 2).map(Duration::as_secs_f64),
+                "mrays_per_s": rays / wall.as_secs_f64() / 1e6,
+            }));
+        }
     }
-    let mut rows = Vec::new();
-    for (variant, key) in variants {
-        let compile = compile_in_child(path, key)?;
-        first_dispatch(ctx, &buffers, prep, key)?;
-        let mut times = Vec::new();
-        for i in 0..=frames {
-            let (_, stats) = render(ctx, &buffers, frame, strahl::scene::RenderMode::Whitted, key, &|_, _| {})?;
-            if i > 0 {
-                times.push(stats.gpu_time.unwrap_or(stats.wall));
+    let cpu = median_time(a.frames, || {
+        strahl::backend::cpu::render(prep, &frame, RenderMode::Whitted, &|_| {});
+        Ok(())
+    })?;
+    Ok(json!({
+        "spp": frame.spp,
+        "gpu": gpu,
+        "cpu": { "frame_s": cpu.as_secs_f64(), "mrays_per_s": rays / cpu.as_secs_f64() / 1e6 },
+    }))
+}
+
+/// Path-tracing rows: the GPU's megakernel and wavefront tracers (per-kernel times from one
+/// timed render with timestamp queries; frame times from progressive renders) and the CPU
+/// backend, `a.spp` samples per pixel a frame.
+fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: u32, h: u32) -> Result<Value> {
+    let frame = GpuFrame { spp: a.spp, ..prep.frame(w, h) };
+    let samples = w as f64 * h as f64 * a.spp as f64;
+    let mut gpu = Vec::new();
+    let row = |kernels: &str, features: String, wall: Duration, times: &[(&str, Duration)]| {
+        let kernel_times: serde_json::Map<String, Value> =
+            times.iter().map(|(k, t)| (k.to_string(), json!(t.as_secs_f64()))).collect();
+        json!({
+            "kernels": kernels,
+            "features": features,
+            "frame_s": wall.as_secs_f64(),
+            "msamples_per_s": samples / wall.as_secs_f64() / 1e6,
+            "kernel_time_s": kernel_times,
+        })
+    };
+    if let Some(ctx) = ctx {
+        let buffers = SceneBuffers::upload(ctx, &prep.gpu)?;
+        let key = buffers.key;
+        // Compile (lavapipe compiles at the first dispatch), then per-kernel GPU times from one
+        // render with timestamp queries.
+        let mega = Progressive::with_kernels(ctx.clone(), buffers.clone(), prep.frame(8, 8), PathKernels::Megakernel);
+        mega?.add_samples(1)?;
+        let (_, stats) = render_tiles(ctx, &buffers, &frame, RenderMode::Path, key, &|_, _| {})?;
+        let mut progressive = Progressive::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Megakernel)?;
+        let wall = median_time(a.frames, || {
+            progressive.reset();
+            progressive.add_samples(a.spp)?;
+            Ok(())
+        })?;
+        gpu.push(row("megakernel", stats.key.label(), wall, &stats.kernel_times));
+        if ctx.has_wavefront() {
+            let wf = Wavefront::new(ctx, buffers.clone(), key, frame)?;
+            let (_, times) = wf.render(ctx, &|_, _| {})?;
+            let mut progressive = Progressive::with_kernels(ctx.clone(), buffers, frame, PathKernels::Wavefront)?;
+            let wall = median_time(a.frames, || {
+                progressive.reset();
+                progressive.add_samples(a.spp)?;
+                Ok(())
+            })?;
+            gpu.push(row("wavefront", wf.key().label(), wall, &times));
+        }
+    }
+    let cpu = median_time(a.frames, || {
+        strahl::backend::cpu::render(prep, &frame, RenderMode::Path, &|_| {});
+        Ok(())
+    })?;
+    Ok(json!({
+        "spp": a.spp,
+        "max_depth": frame.max_depth,
+        "gpu": gpu,
+        "cpu": { "frame_s": cpu.as_secs_f64(), "msamples_per_s": samples / cpu.as_secs_f64() / 1e6 },
+    }))
+}
+
+fn print_report(r: &Value) {
+    match &r["adapter"] {
+        Value::Null => println!("adapter: none (no GPU measured)"),
+        a => println!(
+            "adapter: {} ({}, {}: {}), {} device, timestamp queries: {}",
+            a["name"].as_str().unwrap_or(""),
+            a["backend"].as_str().unwrap_or(""),
+            a["driver"].as_str().unwrap_or(""),
+            a["driver_info"].as_str().unwrap_or(""),
+            a["device_type"].as_str().unwrap_or(""),
+            a["timestamps"]
+        ),
+    }
+    println!("cpu backend: {} threads; frame times: median wall time of the frames after the first", r["cpu_threads"]);
+    let f = |v: &Value, scale: f64, digits: usize| {
+        v.as_f64().map_or("-".to_string(), |x| format!("{:.*}", digits, x * scale))
+    };
+    let mut summary = Vec::new();
+    for s in r["scenes"].as_array().into_iter().flatten() {
+        let name = s["scene"].as_str().unwrap_or("");
+        if let Some(wh) = s.get("whitted") {
+            println!("\n{name}, Whitted, {}x{}, {} spp:", s["width"], s["height"], wh["spp"]);
+            println!("| backend | variant | compile s | frame ms | gpu time ms | M primary rays/s | features |");
+            println!("|---|---|---|---|---|---|---|");
+            for g in wh["gpu"].as_array().into_iter().flatten() {
+                println!(
+                    "| gpu | {} | {} | {} | {} | {} | {} |",
+                    g["variant"].as_str().unwrap_or(""),
+                    f(&g["compile_s"], 1.0, 3),
+                    f(&g["frame_s"], 1e3, 1),
+                    f(&g["gpu_time_s"], 1e3, 1),
+                    f(&g["mrays_per_s"], 1.0, 3),
+                    g["features"].as_str().unwrap_or("")
+                );
+            }
+            let c = &wh["cpu"];
+            println!("| cpu | - | - | {} | - | {} | - |", f(&c["frame_s"], 1e3, 1), f(&c["mrays_per_s"], 1.0, 3));
+            let gpus = wh["gpu"].as_array().cloned().unwrap_or_default();
+            if let (Some(spec), Some(cpu)) = (gpus.first(), c["mrays_per_s"].as_f64()) {
+                let g = spec["mrays_per_s"].as_f64().unwrap_or(0.0);
+                summary.push(format!("{name}, Whitted: the GPU is {} than the CPU backend", faster_or_slower(g / cpu)));
+            }
+            if let [spec, all] = gpus.as_slice() {
+                let ratio = |k: &str| all[k].as_f64().unwrap_or(f64::NAN) / spec[k].as_f64().unwrap_or(f64::NAN);
+                let compile = if spec["compile_s"].is_null() {
+                    String::new()
+                } else {
+                    format!("compiles {} and ", faster_or_slower(ratio("compile_s")))
+                };
+                summary.push(format!(
+                    "{name}, Whitted: the specialised shader {compile}renders {} than the all-features shader",
+                    faster_or_slower(ratio("frame_s"))
+                ));
             }
         }
-        times.sort();
-        let median = times[times.len() / 2];
-        rows.push(Row {
-            scene: name.to_string(),
-            variant: variant.into(),
-            key: key.label(),
-            compile,
-            frame: median,
-            mrays: rays / median.as_secs_f64() / 1e6,
-        });
+        if let Some(p) = s.get("path") {
+            println!(
+                "\n{name}, path tracing, {}x{}, {} spp, max_depth {}:",
+                s["width"], s["height"], p["spp"], p["max_depth"]
+            );
+            println!("| backend | kernels | frame ms | M samples/s | kernel times ms | features |");
+            println!("|---|---|---|---|---|---|");
+            let c = &p["cpu"];
+            for g in p["gpu"].as_array().into_iter().flatten() {
+                let kernels: Vec<String> = g["kernel_time_s"]
+                    .as_object()
+                    .into_iter()
+                    .flatten()
+                    .map(|(k, t)| format!("{k} {}", f(t, 1e3, 1)))
+                    .collect();
+                println!(
+                    "| gpu | {} | {} | {} | {} | {} |",
+                    g["kernels"].as_str().unwrap_or(""),
+                    f(&g["frame_s"], 1e3, 1),
+                    f(&g["msamples_per_s"], 1.0, 3),
+                    if kernels.is_empty() { "-".to_string() } else { kernels.join(", ") },
+                    g["features"].as_str().unwrap_or("")
+                );
+                if let (Some(gs), Some(cs)) = (g["msamples_per_s"].as_f64(), c["msamples_per_s"].as_f64()) {
+                    summary.push(format!(
+                        "{name}, path tracing: the GPU's {} is {} than the CPU backend",
+                        g["kernels"].as_str().unwrap_or(""),
+                        faster_or_slower(gs / cs)
+                    ));
+                }
+            }
+            println!("| cpu | - | {} | {} | - | - |", f(&c["frame_s"], 1e3, 1), f(&c["msamples_per_s"], 1.0, 3));
+        }
     }
-    Ok(rows)
+    if !summary.is_empty() {
+        println!();
+        for line in summary {
+            println!("{line}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ratios_read_as_faster_or_slower() {
+        assert_eq!(faster_or_slower(1.5), "1.50x faster");
+        assert_eq!(faster_or_slower(0.5), "2.00x slower");
+        assert_eq!(faster_or_slower(1.0), "1.00x faster");
+    }
+
+    #[test]
+    fn default_scenes_are_found_from_the_build_folder() {
+        let found = scenes(&[]).unwrap();
+        assert_eq!(found.len(), DEFAULT_SCENES.len());
+        assert!(found.iter().all(|p| p.is_file()), "{found:?}");
+        let named = vec![PathBuf::from("x.toml")];
+        assert_eq!(scenes(&named).unwrap(), named);
+    }
 }

@@ -11,7 +11,12 @@
 //! shadow ray (see [`super::emitters`] for why they are not chosen by power); they use no
 //! random numbers. Both backends consume the random stream in the same order: at every vertex
 //! three numbers for the area-light sample (drawn even where unused), three for the BSDF, and
-//! one for Russian roulette when it applies.
+//! one for Russian roulette when it applies; and add to a path's radiance in the same order:
+//! emission, point and directional lights, the area-light sample.
+//!
+//! The stages are those of `shaders/path_vertex.wgsl` ([`PathState`], [`shade_vertex`],
+//! [`NeeRay`]), which the GPU's megakernel (`path.wgsl`, like [`radiance`] here) and its
+//! wavefront tracer (`wavefront.wgsl`) both run.
 
 use super::bsdf::{self, is_specular};
 use super::camera::ray_through;
@@ -23,7 +28,7 @@ use super::spawn::spawn_origin;
 use super::texture;
 use crate::accel::traverse;
 use crate::math::{Ray, V3};
-use crate::primitives::PrimKind;
+use crate::primitives::{Hit, PrimKind};
 use crate::scene::MaterialKind;
 
 /// Russian roulette may end a path once it has this many segments: Mitsuba's default
@@ -57,83 +62,141 @@ pub fn camera_ray(inp: &ShadeInputs, x: u32, y: u32, s: u32) -> Ray<f32> {
     ray_through(f, x, y, ox, oy)
 }
 
-/// Radiance arriving along `ray`, one path.
-pub fn radiance(inp: &ShadeInputs, mut ray: Ray<f32>, rng: &mut Sampler) -> V3<f32> {
+/// A path between vertices (`PathState` in `shaders/path_vertex.wgsl`).
+#[derive(Clone, Copy, Debug)]
+pub struct PathState {
+    pub ray: Ray<f32>,
+    /// The segment the next hit ends (1: the camera ray).
+    pub seg: u32,
+    pub beta: V3<f32>,
+    pub pdf_bsdf: f32,
+    pub sum: V3<f32>,
+    /// The last scattering was specular (or the path is at the camera).
+    pub specular: bool,
+}
+
+impl PathState {
+    pub fn new(ray: Ray<f32>) -> Self {
+        Self { ray, seg: 1, beta: V3::splat(1.0), pdf_bsdf: 0.0, sum: V3::zero(), specular: true }
+    }
+}
+
+/// A vertex's area-light sample (`NeeRay` in `shaders/path_vertex.wgsl`): the shadow ray, up to
+/// `dist`, and the radiance it adds to the path when nothing blocks it.
+#[derive(Clone, Copy, Debug)]
+pub struct NeeRay {
+    pub ray: Ray<f32>,
+    pub dist: f32,
+    pub value: V3<f32>,
+}
+
+/// Shades the vertex where segment `p.seg` of path `p` meets `hit` (`None`: the ray leaves the
+/// scene), as `shade_vertex` in `shaders/path_vertex.wgsl`: adds the emission there and each
+/// point and directional light to `p.sum`, returns the area-light sample in `nee` (for the
+/// caller to trace), samples the BSDF and plays Russian roulette. Returns whether the path goes
+/// on (`p` then holds its next ray).
+pub fn shade_vertex(
+    inp: &ShadeInputs,
+    p: &mut PathState,
+    hit: Option<&Hit<f32>>,
+    rng: &mut Sampler,
+    nee: &mut Option<NeeRay>,
+) -> bool {
     let (f, g) = (inp.frame, inp.gpu);
-    let mut beta = V3::splat(1.0f32);
-    let mut sum = V3::zero();
-    let mut specular = true;
-    let mut pdf_bsdf = 0.0f32;
-    for seg in 1..=f.max_depth {
-        let Some(hit) = traverse::nearest(inp.bvh, inp.prims, &ray, 0.0, f32::INFINITY) else {
-            // The environment (or the background), weighted against next-event estimation's
-            // samples of it.
-            let w = if specular { 1.0 } else { power_heuristic(pdf_bsdf, environment::pdf(g, ray.dir)) };
-            sum += beta.mul_elem(environment::background(g, f, ray.dir)) * w;
-            break;
-        };
-        let m = &texture::textured(g, &g.materials[hit.tag.material as usize], hit.prim, ray.at(hit.t));
-        let front = ray.dir.dot(hit.normal) < 0.0;
-        let ns = if front { hit.normal } else { -hit.normal };
-        if m.kind == MaterialKind::Emissive as u32 {
-            let cos_l = emitted_cos(m.flags, -ray.dir.dot(hit.normal));
-            if cos_l > 0.0 {
-                let sampled = matches!(hit.prim.kind(), PrimKind::Triangle | PrimKind::Sphere);
-                let w = if specular || !sampled {
-                    1.0
-                } else {
-                    power_heuristic(pdf_bsdf, area_pdf(f, m.radiance, hit.t * hit.t, cos_l))
-                };
-                sum += beta.mul_elem(V3::from_array(m.radiance)) * w;
+    *nee = None;
+    let ray = p.ray;
+    if p.seg > f.max_depth {
+        return false;
+    }
+    let Some(hit) = hit else {
+        // The environment (or the background), weighted against next-event estimation's
+        // samples of it.
+        let pdf_env = if p.specular { 0.0 } else { environment::pdf(g, ray.dir) };
+        let w = if pdf_env > 0.0 { power_heuristic(p.pdf_bsdf, pdf_env) } else { 1.0 };
+        p.sum += p.beta.mul_elem(environment::background(g, f, ray.dir)) * w;
+        return false;
+    };
+    let untextured = &g.materials[hit.tag.material as usize];
+    let m = &texture::textured(g, untextured, hit.prim, ray.at(hit.t));
+    let front = ray.dir.dot(hit.normal) < 0.0;
+    let ns = if front { hit.normal } else { -hit.normal };
+    if m.kind == MaterialKind::Emissive as u32 {
+        let cos_l = emitted_cos(m.flags, -ray.dir.dot(hit.normal));
+        if cos_l > 0.0 {
+            let sampled = matches!(hit.prim.kind(), PrimKind::Triangle | PrimKind::Sphere);
+            let w = if p.specular || !sampled {
+                1.0
+            } else {
+                // Emitters are sampled by their untextured radiance (emitters::sample).
+                power_heuristic(p.pdf_bsdf, area_pdf(f, untextured.radiance, hit.t * hit.t, cos_l))
+            };
+            p.sum += p.beta.mul_elem(V3::from_array(m.radiance)) * w;
+        }
+    }
+    if p.seg == f.max_depth {
+        return false;
+    }
+    let wo = -ray.dir;
+    let u_light = uniform3(rng);
+    if !is_specular(m) {
+        let x = ray.at(hit.t);
+        let origin = spawn_origin(&ray, hit.t, ns);
+        for l in &g.lights[..f.num_lights as usize] {
+            let Some(ls) = emitters::delta_light(l, x) else { continue };
+            let (fc, _) = bsdf::eval(m, wo, ls.dir, ns);
+            if fc.max_component() > 0.0 && !occluded(inp, &Ray::new(origin, ls.dir), ls.dist * SHADOW_REACH) {
+                p.sum += p.beta.mul_elem(fc).mul_elem(ls.value);
             }
         }
-        if seg == f.max_depth {
-            break;
-        }
-        let wo = -ray.dir;
-        let u_light = uniform3(rng);
-        if !is_specular(m)
-            && let Some(ls) = emitters::sample(g, f, ray.at(hit.t), u_light)
-        {
+        if let Some(ls) = emitters::sample(g, f, x, u_light) {
             let (fc, pdf) = bsdf::eval(m, wo, ls.dir, ns);
             if fc.max_component() > 0.0 {
-                let origin = spawn_origin(&ray, hit.t, ns);
-                let shadow = Ray::new(origin, ls.dir);
-                if traverse::nearest(inp.bvh, inp.prims, &shadow, 0.0, ls.dist * SHADOW_REACH).is_none() {
-                    sum += beta.mul_elem(fc).mul_elem(ls.value) * power_heuristic(ls.pdf, pdf);
-                }
+                let value = p.beta.mul_elem(fc).mul_elem(ls.value) * power_heuristic(ls.pdf, pdf);
+                *nee = Some(NeeRay { ray: Ray::new(origin, ls.dir), dist: ls.dist * SHADOW_REACH, value });
             }
         }
-        if !is_specular(m) {
-            let p = ray.at(hit.t);
-            for l in &g.lights[..f.num_lights as usize] {
-                let Some(ls) = emitters::delta_light(l, p) else { continue };
-                let (fc, _) = bsdf::eval(m, wo, ls.dir, ns);
-                if fc.max_component() > 0.0 {
-                    let shadow = Ray::new(spawn_origin(&ray, hit.t, ns), ls.dir);
-                    if traverse::nearest(inp.bvh, inp.prims, &shadow, 0.0, ls.dist * SHADOW_REACH).is_none() {
-                        sum += beta.mul_elem(fc).mul_elem(ls.value);
-                    }
-                }
-            }
-        }
-        let Some(bs) = bsdf::sample(m, wo, ns, front, uniform3(rng)) else {
-            break;
-        };
-        beta = beta.mul_elem(bs.weight);
-        specular = bs.specular;
-        pdf_bsdf = bs.pdf;
-        if seg >= f.rr_depth {
-            let q = beta.max_component().min(0.95);
-            if rng.next_f32() >= q {
-                break;
-            }
-            beta = beta / q;
-        }
-        let side = if bs.dir.dot(hit.normal) >= 0.0 { hit.normal } else { -hit.normal };
-        ray = Ray::new(spawn_origin(&ray, hit.t, side), bs.dir);
     }
-    sum
+    let Some(bs) = bsdf::sample(m, wo, ns, front, uniform3(rng)) else {
+        return false;
+    };
+    p.beta = p.beta.mul_elem(bs.weight);
+    p.specular = bs.specular;
+    p.pdf_bsdf = bs.pdf;
+    if p.seg >= f.rr_depth {
+        let q = p.beta.max_component().min(0.95);
+        if rng.next_f32() >= q {
+            return false;
+        }
+        p.beta = p.beta / q;
+    }
+    let side = if bs.dir.dot(hit.normal) >= 0.0 { hit.normal } else { -hit.normal };
+    p.ray = Ray::new(spawn_origin(&ray, hit.t, side), bs.dir);
+    p.seg += 1;
+    true
+}
+
+/// Whether anything lies in (0, tmax) along the shadow ray.
+fn occluded(inp: &ShadeInputs, ray: &Ray<f32>, tmax: f32) -> bool {
+    traverse::nearest(inp.bvh, inp.prims, ray, 0.0, tmax).is_some()
+}
+
+/// Radiance arriving along `ray`, one path (the GPU's megakernel, `path.wgsl`): each vertex
+/// shaded, its area-light shadow ray traced at once.
+pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>, rng: &mut Sampler) -> V3<f32> {
+    let mut p = PathState::new(ray);
+    let mut nee = None;
+    loop {
+        let hit = traverse::nearest(inp.bvh, inp.prims, &p.ray, 0.0, f32::INFINITY);
+        let more = shade_vertex(inp, &mut p, hit.as_ref(), rng, &mut nee);
+        if let Some(n) = nee
+            && !occluded(inp, &n.ray, n.dist)
+        {
+            p.sum += n.value;
+        }
+        if !more {
+            return p.sum;
+        }
+    }
 }
 
 /// Radiance of sample `s` of pixel (x, y); a non-finite sample (which a valid scene never

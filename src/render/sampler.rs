@@ -7,8 +7,8 @@
 //! best-quality 32-bit hash of their survey at this cost. Everything is u32 arithmetic, exact
 //! on both backends.
 
-const PCG_MULT: u32 = 747_796_405;
-const PCG_INC: u32 = 2_891_336_453;
+pub const PCG_MULT: u32 = 747_796_405;
+pub const PCG_INC: u32 = 2_891_336_453;
 
 /// One PCG step of `v` followed by its RXS-M-XS output permutation.
 #[inline]

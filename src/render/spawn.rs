@@ -7,7 +7,7 @@ const INT_SCALE: f32 = 32.0;
 /// The smallest ULP the offset uses: that of the smallest normal f32 (2⁻¹²⁶). Below it, ULPs
 /// are those of subnormals, which GPUs may flush to zero; a scene would have to be about 10⁻³⁰
 /// units across for it to matter.
-const MIN_ULP: f32 = f32::MIN_POSITIVE;
+pub const MIN_ULP: f32 = f32::MIN_POSITIVE;
 
 /// One ULP of the positive finite float `m`, exactly (integer arithmetic on its bits).
 #[inline]

@@ -5,7 +5,9 @@
 
 pub mod render;
 pub mod shaders;
+pub mod shared;
 pub mod trace;
+pub mod wavefront;
 
 pub use shaders::{FeatureKey, Program};
 
@@ -36,8 +38,25 @@ pub enum GpuError {
     Wgpu(String),
 }
 
-/// Storage buffers of bind group 0 (`shaders/bindings.wgsl`): the frame and the scene's.
+/// Storage buffers a stage binds: the scene's 16 and the trace program's 3 (the wavefront path
+/// tracer needs [`wavefront::BINDINGS`] more than the scene's; see
+/// [`GpuContext::has_wavefront`]).
+const MIN_STORAGE_BUFFERS: u32 = SCENE_BINDINGS + 3;
+/// Bindings of group 0 (`shaders/bindings.wgsl`): the frame and the scene's buffers, those of
+/// textures and the environment included.
 pub const SCENE_BINDINGS: u32 = 16;
+
+/// How path tracing runs on a device: one kernel per sample pass that follows each path to its
+/// end (`path.wgsl`), or separate kernels over queues of paths (`wavefront.wgsl`, see
+/// [`wavefront`]). Both compute the same image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathKernels {
+    Megakernel,
+    Wavefront,
+}
+
+/// The environment variable that overrides [`GpuContext::path_kernels`].
+pub const PATH_KERNELS_VAR: &str = "STRAHL_PATH_KERNELS";
 
 /// A pipeline is specialised by its program, the scene's features and its entry point.
 type PipelineKey = (Program, FeatureKey, &'static str);
@@ -63,6 +82,7 @@ pub struct GpuContext {
     scene_layout: wgpu::BindGroupLayout,
     render_layout: wgpu::BindGroupLayout,
     trace_layout: wgpu::BindGroupLayout,
+    wavefront_layout: wgpu::BindGroupLayout,
     pipelines: Mutex<HashMap<PipelineKey, Arc<CachedPipeline>>>,
 }
 
@@ -120,11 +140,9 @@ impl GpuContext {
         adapter_info: wgpu::AdapterInfo,
     ) -> Result<Self, GpuError> {
         let limits = device.limits();
-        // The scene's buffers and the trace program's three.
-        let needed = SCENE_BINDINGS + 3;
-        if limits.max_storage_buffers_per_shader_stage < needed {
+        if limits.max_storage_buffers_per_shader_stage < MIN_STORAGE_BUFFERS {
             return Err(GpuError::Device(format!(
-                "strahl needs {needed} storage buffers per shader stage, this device offers {}",
+                "strahl needs {MIN_STORAGE_BUFFERS} storage buffers per shader stage, this device offers {}",
                 limits.max_storage_buffers_per_shader_stage
             )));
         }
@@ -145,6 +163,11 @@ impl GpuContext {
             label: Some("trace io"),
             entries: &[storage_entry(0, true), storage_entry(1, false), storage_entry(2, false)],
         });
+        let wavefront_entries: Vec<_> = (0..wavefront::BINDINGS).map(|b| storage_entry(b, false)).collect();
+        let wavefront_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("wavefront queues"),
+            entries: &wavefront_entries,
+        });
         Ok(Self {
             device,
             queue,
@@ -155,6 +178,7 @@ impl GpuContext {
             scene_layout,
             render_layout,
             trace_layout,
+            wavefront_layout,
             pipelines: Mutex::new(HashMap::new()),
         })
     }
@@ -186,6 +210,7 @@ impl GpuContext {
         let io_layout = match program {
             Program::Render | Program::Path | Program::View => &self.render_layout,
             Program::Trace => &self.trace_layout,
+            Program::Wavefront => &self.wavefront_layout,
         };
         let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(entry),
@@ -214,6 +239,37 @@ impl GpuContext {
     ) -> Option<Arc<CachedPipeline>> {
         let key = self.variant(program, key);
         self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)).cloned()
+    }
+
+    /// The path tracer this device runs best, as measured (`strahl bench` times both): on
+    /// lavapipe before Mesa 25, which executes both sides of every branch for all eight lanes of
+    /// its SIMD programs, the wavefront tracer, whose kernels carry only the code of their stage
+    /// (Mesa 22.3.6: 1.6x the megakernel's samples per second on the seed scene); everywhere
+    /// else the megakernel (Mesa 25.0.7, which skips branches no lane takes: 2.2x the wavefront
+    /// tracer's; no other device measured yet). The environment variable
+    /// [`PATH_KERNELS_VAR`] (`megakernel` or `wavefront`) overrides the choice.
+    pub fn path_kernels(&self) -> Result<PathKernels, GpuError> {
+        if let Some(v) = std::env::var_os(PATH_KERNELS_VAR) {
+            return match v.to_str() {
+                Some("megakernel") => Ok(PathKernels::Megakernel),
+                Some("wavefront") if self.has_wavefront() => Ok(PathKernels::Wavefront),
+                Some("wavefront") => Err(GpuError::Device(format!(
+                    "{PATH_KERNELS_VAR}=wavefront: this device binds too few storage buffers per stage for it"
+                ))),
+                _ => Err(GpuError::Device(format!(
+                    "{PATH_KERNELS_VAR} must be megakernel or wavefront, not {}",
+                    v.to_string_lossy()
+                ))),
+            };
+        }
+        let info = &self.adapter_info;
+        let old_lavapipe = info.driver == "llvmpipe" && mesa_major(&info.driver_info).is_some_and(|m| m < 25);
+        Ok(if old_lavapipe && self.has_wavefront() { PathKernels::Wavefront } else { PathKernels::Megakernel })
+    }
+
+    /// Whether this device binds enough storage buffers per stage for the wavefront path tracer.
+    pub fn has_wavefront(&self) -> bool {
+        self.limits.max_storage_buffers_per_shader_stage >= SCENE_BINDINGS + wavefront::BINDINGS
     }
 
     /// The variant of `program` this device compiles for a scene needing `key`.
@@ -295,8 +351,15 @@ impl GpuContext {
     }
 }
 
+/// The major version in a Mesa driver description such as "Mesa 22.3.6 (LLVM 15.0.6)".
+fn mesa_major(driver_info: &str) -> Option<u32> {
+    let rest = driver_info.split("Mesa ").nth(1)?;
+    rest.split(|c: char| !c.is_ascii_digit()).next()?.parse().ok()
+}
+
 /// A scene's storage buffers on the device (bind group 0, without the frame's contents, which
-/// change per dispatch).
+/// change per dispatch). Cloning shares the buffers.
+#[derive(Clone)]
 pub struct SceneBuffers {
     pub key: FeatureKey,
     pub frame: wgpu::Buffer,
@@ -367,5 +430,17 @@ impl SceneBuffers {
     /// feature the scene uses, and walk a BVH only if the scene has one.
     pub fn runs_with(&self, key: FeatureKey) -> bool {
         (key.0 & self.key.0) == self.key.0 && (!key.has(FeatureKey::BVH) || self.has_bvh)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mesa_versions_read_from_driver_descriptions() {
+        assert_eq!(mesa_major("Mesa 22.3.6 (LLVM 15.0.6)"), Some(22));
+        assert_eq!(mesa_major("Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"), Some(25));
+        assert_eq!(mesa_major("570.124.04"), None);
     }
 }

@@ -2,7 +2,8 @@
 //! into tiles of at most [`TILE`]×[`TILE`] pixels, one dispatch per tile and sample pass, so
 //! no dispatch runs for long.
 
-use super::{CachedPipeline, FeatureKey, GpuContext, GpuError, Program, SceneBuffers};
+use super::wavefront::Wavefront;
+use super::{CachedPipeline, FeatureKey, GpuContext, GpuError, PathKernels, Program, SceneBuffers};
 use crate::gpu_types::{FRAME_ACCUMULATE, GpuFrame};
 use crate::image::Image;
 use crate::scene::RenderMode;
@@ -11,8 +12,12 @@ use std::time::{Duration, Instant};
 
 /// Tile side in pixels.
 pub const TILE: u32 = 128;
-const WORKGROUP: u32 = 8;
+/// Side of a render workgroup in invocations (`TILE_WORKGROUP` in the shaders).
+pub const WORKGROUP: u32 = 8;
 const PIXEL_BYTES: u64 = 16;
+
+/// GPU time per kernel (entry point name), from timestamp queries.
+pub type KernelTimes = Vec<(&'static str, Duration)>;
 
 /// What a GPU render measured.
 #[derive(Clone, Debug, Default)]
@@ -21,6 +26,8 @@ pub struct RenderStats {
     pub wall: Duration,
     /// Sum of per-dispatch GPU times from timestamp queries, if the adapter has them.
     pub gpu_time: Option<Duration>,
+    /// The same sum per kernel (entry point), where the adapter has timestamp queries.
+    pub kernel_times: KernelTimes,
     pub dispatches: u32,
     /// Time spent compiling the pipeline (zero when it was cached).
     pub compile_time: Duration,
@@ -47,6 +54,27 @@ pub fn render(
     progress: &dyn Fn(u64, u64),
 ) -> Result<(Image, RenderStats), GpuError> {
     assert!(scene.runs_with(key), "variant {} cannot render a scene needing {}", key.label(), scene.key.label());
+    if mode == RenderMode::Path && ctx.path_kernels()? == PathKernels::Wavefront {
+        let start = Instant::now();
+        let wf = Wavefront::new(ctx, scene.clone(), key, *frame)?;
+        let (img, kernel_times) = wf.render(ctx, progress)?;
+        let gpu_time = (!kernel_times.is_empty()).then(|| kernel_times.iter().map(|(_, t)| *t).sum());
+        let stats = RenderStats { wall: start.elapsed(), gpu_time, kernel_times, key: wf.key(), ..Default::default() };
+        return Ok((img, stats));
+    }
+    render_tiles(ctx, scene, frame, mode, key, progress)
+}
+
+/// [`render`] by tiles: one dispatch of the mode's single kernel (for path tracing the
+/// megakernel) per tile and sample pass.
+pub fn render_tiles(
+    ctx: &GpuContext,
+    scene: &SceneBuffers,
+    frame: &GpuFrame,
+    mode: RenderMode,
+    key: FeatureKey,
+    progress: &dyn Fn(u64, u64),
+) -> Result<(Image, RenderStats), GpuError> {
     let (program, entry) = program_for(mode);
     let was_cached = ctx.cached_pipeline(program, key, entry).is_some();
     let pipe = ctx.pipeline(program, key, entry)?;
@@ -117,64 +145,105 @@ pub fn render(
     }
     stats.wall = start.elapsed();
     stats.gpu_time = timer.map(|_| Duration::from_nanos(gpu_ns as u64));
+    stats.kernel_times = stats.gpu_time.map(|t| (entry, t)).into_iter().collect();
     stats.compile_time = if was_cached { Duration::ZERO } else { pipe.compile_time };
     Ok((img, stats))
 }
 
 /// Progressive path tracing on the GPU: the whole image's sums live in one output buffer that
-/// each sample pass adds to, one dispatch per tile, so the image can be read at any time.
+/// each sample pass adds to, so the image can be read at any time. The passes run as the
+/// megakernel (one dispatch per tile) or as the wavefront tracer, whichever
+/// [`GpuContext::path_kernels`] picks for the device.
 pub struct Progressive {
     ctx: Arc<GpuContext>,
-    scene: SceneBuffers,
     frame: GpuFrame,
-    pipeline: Arc<CachedPipeline>,
-    output: wgpu::Buffer,
-    out_group: wgpu::BindGroup,
+    kernels: ProgressiveKernels,
     samples: u32,
 }
 
+enum ProgressiveKernels {
+    Megakernel { scene: SceneBuffers, pipeline: Arc<CachedPipeline>, output: wgpu::Buffer, out_group: wgpu::BindGroup },
+    Wavefront(Box<Wavefront>),
+}
+
 impl Progressive {
-    /// Compiles (or takes from the cache) the path pipeline for the scene's key and allocates
-    /// the accumulation buffer for `frame` (whole image; its `spp` and `sample_base` are
-    /// ignored). Fails, before allocating, when the image does not fit one storage binding.
+    /// Compiles (or takes from the cache) the path kernels for the scene's key and allocates
+    /// the sums for `frame` (whole image; its `spp` and `sample_base` are ignored), with the
+    /// kernels this device runs best. Fails, before allocating, when the image does not fit one
+    /// storage binding.
     pub fn new(ctx: Arc<GpuContext>, scene: SceneBuffers, frame: GpuFrame) -> Result<Self, GpuError> {
+        let kernels = ctx.path_kernels()?;
+        Self::with_kernels(ctx, scene, frame, kernels)
+    }
+
+    /// [`Progressive::new`] with the given kernels.
+    pub fn with_kernels(
+        ctx: Arc<GpuContext>,
+        scene: SceneBuffers,
+        frame: GpuFrame,
+        kernels: PathKernels,
+    ) -> Result<Self, GpuError> {
         let bytes = frame.width as u64 * frame.height as u64 * PIXEL_BYTES;
         ctx.check_binding_size(&format!("the {}x{} accumulation buffer", frame.width, frame.height), bytes)?;
-        let (program, entry) = program_for(RenderMode::Path);
-        let pipeline = ctx.pipeline(program, scene.key, entry)?;
-        let output = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("accumulation"),
-            size: bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let out_group = ctx.output_bind_group(&output);
-        Ok(Self { ctx, scene, frame, pipeline, output, out_group, samples: 0 })
+        let kernels = match kernels {
+            PathKernels::Wavefront => {
+                let key = scene.key;
+                let wf = Wavefront::new(&ctx, scene, key, frame)?;
+                wf.check_whole_image(&ctx)?;
+                ProgressiveKernels::Wavefront(Box::new(wf))
+            }
+            PathKernels::Megakernel => {
+                let (program, entry) = program_for(RenderMode::Path);
+                let pipeline = ctx.pipeline(program, scene.key, entry)?;
+                let output = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("accumulation"),
+                    size: bytes,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                });
+                let out_group = ctx.output_bind_group(&output);
+                ProgressiveKernels::Megakernel { scene, pipeline, output, out_group }
+            }
+        };
+        Ok(Self { ctx, frame, kernels, samples: 0 })
     }
 
     pub fn context(&self) -> &GpuContext {
         &self.ctx
     }
 
+    /// The kernels the passes run as.
+    pub fn kernels(&self) -> PathKernels {
+        match self.kernels {
+            ProgressiveKernels::Megakernel { .. } => PathKernels::Megakernel,
+            ProgressiveKernels::Wavefront(_) => PathKernels::Wavefront,
+        }
+    }
+
     /// Adds samples `samples() .. samples() + n` to every pixel and waits for the GPU.
     pub fn add_samples(&mut self, n: u32) -> Result<(), GpuError> {
-        let band = Band::whole(self.frame.width, self.frame.height, TILE);
-        for k in 0..n {
-            let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-            let frame = GpuFrame { sample_base: self.samples + k, ..self.frame };
-            record_pass(
-                &self.ctx,
-                &mut enc,
-                &self.scene,
-                &self.pipeline.pipeline,
-                &self.out_group,
-                &frame,
-                &band,
-                0..band.tile_count(),
-                self.samples + k > 0,
-                None,
-            );
-            self.ctx.queue.submit([enc.finish()]);
+        match &self.kernels {
+            ProgressiveKernels::Wavefront(wf) => wf.submit_passes(&self.ctx, self.samples, n),
+            ProgressiveKernels::Megakernel { scene, pipeline, out_group, .. } => {
+                let band = Band::whole(self.frame.width, self.frame.height, TILE);
+                for k in 0..n {
+                    let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+                    let frame = GpuFrame { sample_base: self.samples + k, ..self.frame };
+                    record_pass(
+                        &self.ctx,
+                        &mut enc,
+                        scene,
+                        &pipeline.pipeline,
+                        out_group,
+                        &frame,
+                        &band,
+                        0..band.tile_count(),
+                        self.samples + k > 0,
+                        None,
+                    );
+                    self.ctx.queue.submit([enc.finish()]);
+                }
+            }
         }
         self.ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Wgpu(e.to_string()))?;
         self.samples += n;
@@ -196,7 +265,11 @@ impl Progressive {
         if self.samples == 0 {
             return Ok(img);
         }
-        let px: Vec<[f32; 4]> = self.ctx.read_pod(&self.output, img.pixels.len())?;
+        let output = match &self.kernels {
+            ProgressiveKernels::Megakernel { output, .. } => output,
+            ProgressiveKernels::Wavefront(wf) => wf.output(),
+        };
+        let px: Vec<[f32; 4]> = self.ctx.read_pod(output, img.pixels.len())?;
         let k = 1.0 / self.samples as f32;
         for (p, s) in img.pixels.iter_mut().zip(px) {
             *p = [s[0] * k, s[1] * k, s[2] * k];
@@ -272,17 +345,7 @@ pub fn record_pass(
             flags: (frame.flags & !FRAME_ACCUMULATE) | if accumulate { FRAME_ACCUMULATE } else { 0 },
             ..*frame
         };
-        // Each tile needs its own frame: a small per-tile buffer copied into the frame buffer
-        // right before its dispatch, in command order.
-        let staging = wgpu::util::DeviceExt::create_buffer_init(
-            &ctx.device,
-            &wgpu::util::BufferInitDescriptor {
-                label: Some("tile frame"),
-                contents: bytemuck::bytes_of(&tile),
-                usage: wgpu::BufferUsages::COPY_SRC,
-            },
-        );
-        enc.copy_buffer_to_buffer(&staging, 0, &scene.frame, 0, std::mem::size_of::<GpuFrame>() as u64);
+        stage_frame(ctx, enc, scene, &tile);
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("render tile"),
             timestamp_writes: timer.map(|(t, first)| t.writes(first + n)),
@@ -295,6 +358,21 @@ pub fn record_pass(
         n += 1;
     }
     n
+}
+
+/// Records into `enc` a copy of `frame` into the scene's frame buffer, so that the dispatches
+/// recorded after it (until the next such copy) read it: each tile or pass needs its own frame,
+/// in command order (a queue write would land before the whole submission).
+pub fn stage_frame(ctx: &GpuContext, enc: &mut wgpu::CommandEncoder, scene: &SceneBuffers, frame: &GpuFrame) {
+    let staging = wgpu::util::DeviceExt::create_buffer_init(
+        &ctx.device,
+        &wgpu::util::BufferInitDescriptor {
+            label: Some("frame"),
+            contents: bytemuck::bytes_of(frame),
+            usage: wgpu::BufferUsages::COPY_SRC,
+        },
+    );
+    enc.copy_buffer_to_buffer(&staging, 0, &scene.frame, 0, std::mem::size_of::<GpuFrame>() as u64);
 }
 
 /// Timestamp queries around each dispatch of one submission.
@@ -335,9 +413,14 @@ impl Timer {
         enc.resolve_query_set(&self.set, 0..2 * passes, &self.resolve, 0);
     }
 
+    /// Nanoseconds of each of the `passes` dispatches just submitted.
+    pub fn read_each(&self, ctx: &GpuContext, passes: u32) -> Result<Vec<f64>, GpuError> {
+        let ts: Vec<u64> = ctx.read_pod(&self.resolve, 2 * passes as usize)?;
+        Ok(ts.chunks(2).map(|p| p[1].saturating_sub(p[0]) as f64 * self.period_ns).collect())
+    }
+
     /// Total nanoseconds of the `passes` dispatches just submitted.
     pub fn read(&self, ctx: &GpuContext, passes: u32) -> Result<f64, GpuError> {
-        let ts: Vec<u64> = ctx.read_pod(&self.resolve, 2 * passes as usize)?;
-        Ok(ts.chunks(2).map(|p| p[1].saturating_sub(p[0]) as f64 * self.period_ns).sum())
+        Ok(self.read_each(ctx, passes)?.iter().sum())
     }
 }

@@ -28,6 +28,7 @@ pub const MODULES: &[(&str, &str)] = &[
     ("shaders/sampler.wgsl", include_str!("../../../shaders/sampler.wgsl")),
     ("shaders/bsdf.wgsl", include_str!("../../../shaders/bsdf.wgsl")),
     ("shaders/emitters.wgsl", include_str!("../../../shaders/emitters.wgsl")),
+    ("shaders/path_vertex.wgsl", include_str!("../../../shaders/path_vertex.wgsl")),
 ];
 
 /// A top-level shader and its entry points.
@@ -39,6 +40,8 @@ pub enum Program {
     Path,
     /// `trace.wgsl`: ray queries.
     Trace,
+    /// `wavefront.wgsl`: path tracing as separate kernels over queues of paths.
+    Wavefront,
     /// `view.wgsl`: the viewer's debug images (normals, depth, BVH cost) of primary rays;
     /// composed with `COUNT_VISITS`, which makes the traversal count its work.
     View,
@@ -50,6 +53,7 @@ impl Program {
             Program::Render => ("shaders/render.wgsl", include_str!("../../../shaders/render.wgsl")),
             Program::Path => ("shaders/path.wgsl", include_str!("../../../shaders/path.wgsl")),
             Program::Trace => ("shaders/trace.wgsl", include_str!("../../../shaders/trace.wgsl")),
+            Program::Wavefront => ("shaders/wavefront.wgsl", include_str!("../../../shaders/wavefront.wgsl")),
             Program::View => ("shaders/view.wgsl", include_str!("../../../shaders/view.wgsl")),
         }
     }
@@ -142,7 +146,7 @@ impl FeatureKey {
     /// The key as the program sees it: the trace and view programs ignore shading flags.
     pub fn for_program(self, p: Program) -> FeatureKey {
         match p {
-            Program::Render | Program::Path => self,
+            Program::Render | Program::Path | Program::Wavefront => self,
             Program::Trace | Program::View => FeatureKey(self.0 & Self::GEOMETRY),
         }
     }
@@ -152,7 +156,6 @@ impl FeatureKey {
             .filter(|i| self.0 & (1 << i) != 0)
             .map(|i| (Self::NAMES[i as usize].to_string(), ShaderDefValue::Bool(true)))
             .collect();
-        defs.extend(SHARED_CONSTANTS.iter().map(|&(name, v)| (name.to_string(), ShaderDefValue::UInt(v))));
         if self.has(Self::POINT_LIGHTS | Self::DIRECTIONAL_LIGHTS) {
             defs.insert("LIGHTS".into(), ShaderDefValue::Bool(true));
         }
@@ -181,31 +184,6 @@ impl FeatureKey {
 /// run on devices with `SHADER_INT64`).
 const CAPABILITIES: naga::valid::Capabilities = naga::valid::Capabilities::SHADER_INT64;
 
-/// Values the shaders share with the host, passed to every variant as shader defs (`#{NAME}`
-/// in WGSL) so that they are written once, here.
-pub const SHARED_CONSTANTS: &[(&str, u32)] = {
-    use crate::accel::gpu_bvh as g;
-    &[
-        ("LINK_LEAF", g::LINK_LEAF),
-        ("LINK_SHAPES", g::LINK_SHAPES),
-        ("LINK_COUNT_SHIFT", g::LINK_COUNT_SHIFT),
-        ("LINK_FIRST_MASK", g::LINK_FIRST_MASK),
-        ("LINK_EMPTY", g::LINK_EMPTY),
-        ("GPU_STACK", g::MAX_DEPTH),
-        ("FRAME_ENVIRONMENT", crate::gpu_types::FRAME_ENVIRONMENT),
-        ("TEXTURE_WRAP_U_SHIFT", crate::gpu_types::TEXTURE_WRAP_U_SHIFT),
-        ("TEXTURE_WRAP_V_SHIFT", crate::gpu_types::TEXTURE_WRAP_V_SHIFT),
-        ("TEXTURE_NEAREST", crate::gpu_types::TEXTURE_NEAREST),
-        ("TEXTURE_LINEAR_RGB", crate::gpu_types::TEXTURE_LINEAR_RGB),
-        ("WRAP_REPEAT", crate::scene::texture::Wrap::Repeat as u32),
-        ("WRAP_CLAMP", crate::scene::texture::Wrap::Clamp as u32),
-        ("WRAP_MIRROR", crate::scene::texture::Wrap::Mirror as u32),
-        // Not ENV_MAP: that name is the feature's shader def.
-        ("ENV_FLAG_MAP", crate::gpu_types::ENV_MAP),
-        ("ENV_FLAG_UNIFORM", crate::gpu_types::ENV_UNIFORM),
-    ]
-};
-
 #[derive(Debug, thiserror::Error)]
 pub enum ShaderError {
     #[error("composing {file}: {message}")]
@@ -219,20 +197,21 @@ fn compose_error(e: &ComposerError) -> String {
     format!("{e:?}")
 }
 
-/// The text of shader `file` (a path like `shaders/types.wgsl`): the one built into the binary,
-/// or, when the environment variable `STRAHL_SHADER_DIR` names a folder, the file of that name
-/// in it, so that shaders can be edited and measured without rebuilding.
-fn source_text(file: &str, built_in: &'static str) -> Result<std::borrow::Cow<'static, str>, ShaderError> {
-    match std::env::var_os("STRAHL_SHADER_DIR") {
-        None => Ok(built_in.into()),
+/// The text of shader `file` (a path like `shaders/types.wgsl`) with the shared values
+/// substituted ([`super::shared`]): the text built into the binary, or, when the environment
+/// variable `STRAHL_SHADER_DIR` names a folder, the file of that name in it, so that shaders can
+/// be edited and measured without rebuilding.
+fn source_text(file: &str, built_in: &'static str) -> Result<String, ShaderError> {
+    let text = match std::env::var_os("STRAHL_SHADER_DIR") {
+        None => built_in.to_string(),
         Some(dir) => {
             let name = std::path::Path::new(file).file_name().expect("shader paths name a file");
             let path = std::path::Path::new(&dir).join(name);
             std::fs::read_to_string(&path)
-                .map(Into::into)
-                .map_err(|e| ShaderError::Compose { file: path.display().to_string(), message: e.to_string() })
+                .map_err(|e| ShaderError::Compose { file: path.display().to_string(), message: e.to_string() })?
         }
-    }
+    };
+    Ok(super::shared::substitute(&text))
 }
 
 /// Composes `program` for `key` into a naga module.
@@ -324,7 +303,7 @@ mod tests {
             .into_par_iter()
             .flat_map_iter(|bits| {
                 let key = FeatureKey(bits);
-                [Program::Render, Program::Path, Program::Trace, Program::View]
+                [Program::Render, Program::Path, Program::Wavefront, Program::Trace, Program::View]
                     .into_iter()
                     .filter(move |&p| key.for_program(p) == key)
                     .filter_map(move |p| match compose(p, key) {
@@ -388,7 +367,7 @@ mod tests {
     /// flow (shaders/bindings.wgsl): no program binds a uniform buffer.
     #[test]
     fn no_program_binds_a_uniform_buffer() {
-        for p in [Program::Render, Program::Path, Program::Trace, Program::View] {
+        for p in [Program::Render, Program::Path, Program::Wavefront, Program::Trace, Program::View] {
             let key = FeatureKey::ALL.for_program(p);
             let m = compose(p, key).unwrap();
             let uniforms: Vec<_> = m
@@ -399,6 +378,48 @@ mod tests {
                 .collect();
             assert!(uniforms.is_empty(), "{p:?} binds uniforms {uniforms:?}");
         }
+    }
+
+    /// The constants of the composed shaders hold the values the host shares with them
+    /// (super::shared), as naga evaluated them.
+    #[test]
+    fn shared_constants_reach_the_composed_shaders_exactly() {
+        use super::super::shared::{Shared, constants};
+        let shared: HashMap<&str, Shared> = constants().into_iter().collect();
+        let mut seen = std::collections::HashSet::new();
+        for p in [Program::Render, Program::Path, Program::Wavefront, Program::Trace, Program::View] {
+            for key in [FeatureKey::ALL, FeatureKey(FeatureKey::ALL.0 | FeatureKey::LOAD64)] {
+                let m = compose(p, key).unwrap();
+                for (_, c) in m.constants.iter() {
+                    let Some(name) = c.name.as_deref().and_then(|n| n.split("X_naga_oil_mod_X").next()) else {
+                        continue;
+                    };
+                    let Some(&want) = shared.get(name) else { continue };
+                    let got = match m.global_expressions[c.init] {
+                        naga::Expression::Literal(naga::Literal::U32(v)) => Shared::U32(v),
+                        naga::Expression::Literal(naga::Literal::F32(v)) => Shared::F32(v),
+                        ref e => panic!("{name}: not a literal: {e:?}"),
+                    };
+                    assert_eq!(got, want, "{name} in the {p:?} shader");
+                    seen.insert(name.to_string());
+                }
+            }
+        }
+        // Workgroup sizes are attributes and the stack depth an array length, not constants.
+        let m = compose(Program::Path, FeatureKey::ALL).unwrap();
+        let stack_len = m.types.iter().find_map(|(_, ty)| match &ty.inner {
+            naga::TypeInner::Struct { members, .. } if ty.name.as_deref()?.starts_with("Stack") => {
+                match m.types[members[0].ty].inner {
+                    naga::TypeInner::Array { size: naga::ArraySize::Constant(n), .. } => Some(n.get()),
+                    _ => None,
+                }
+            }
+            _ => None,
+        });
+        assert_eq!(stack_len.map(Shared::U32), shared.get("GPU_STACK").copied(), "the traversal stack's length");
+        let folded = |n: &str| n.ends_with("WORKGROUP") || n == "GPU_STACK";
+        let missing: Vec<_> = shared.keys().filter(|n| !seen.contains(**n) && !folded(n)).collect();
+        assert!(missing.is_empty(), "not found as constants: {missing:?}");
     }
 
     /// Every struct the host writes into a GPU buffer has, in the composed WGSL module, the

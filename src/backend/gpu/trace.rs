@@ -8,7 +8,8 @@ use crate::math::V3;
 use crate::primitives::{Hit, PrimRef, Tag};
 use crate::query::RayQuery;
 
-const WORKGROUP: u64 = 64;
+/// Invocations of a trace workgroup (`TRACE_WORKGROUP` in `shaders/trace.wgsl`).
+pub const WORKGROUP: u64 = 64;
 const HIT_BYTES: u64 = std::mem::size_of::<GpuQueryHit>() as u64;
 
 fn to_gpu(q: &RayQuery) -> GpuQueryRay {

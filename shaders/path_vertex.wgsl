@@ -1,0 +1,201 @@
+// One vertex of a path-traced sample: twin of render::path (PathState, path_start,
+// shade_vertex). Both GPU path tracers run it: the megakernel (path.wgsl) traces the vertex's
+// shadow ray at once, the wavefront one (wavefront.wgsl) queues it for a kernel of its own.
+//
+// Per vertex, in this order: the emission of what the segment hit (MIS-weighted against the
+// light sample of the previous vertex), each point and directional light (shadow ray traced
+// here), the area-light sample (returned as a NeeRay: a shadow ray and what it adds when
+// unoccluded), the BSDF sample and Russian roulette. Random numbers are drawn in the same
+// order on both backends: three for the area-light sample, three for the BSDF, one for Russian
+// roulette when it applies.
+#define_import_path strahl::path_vertex
+
+#import strahl::types::{MAT_EMISSIVE, KIND_TRIANGLE, KIND_SPHERE, INDEX_BITS, F32_MAX}
+#import strahl::bindings::{frame, materials}
+#ifdef LIGHTS
+#import strahl::bindings::lights
+#import strahl::emitters::delta_light
+#import strahl::traverse::occluded
+#endif
+#import strahl::traverse::{Nearest, hit_normal, hit_material}
+#import strahl::spawn::spawn_origin
+#import strahl::raygen::ray_through
+#import strahl::sampler::{sampler_new, next_f32, uniform3, pixel_jitter}
+#import strahl::bsdf::{bsdf_sample, bsdf_eval, is_specular}
+#import strahl::emitters::{sample_light, area_pdf, emitted_cos}
+#ifdef TEXTURES
+#import strahl::texture::textured
+#endif
+#ifdef ENVIRONMENT
+#import strahl::environment::{env_background, env_pdf}
+#endif
+
+// Shadow rays stop this fraction short of the light point (render::path::SHADOW_REACH).
+const SHADOW_REACH: f32 = #{SHADOW_REACH};
+
+// A path between vertices (render::path::PathState); host-shareable, for the wavefront
+// tracer's path buffer.
+struct PathState {
+    o: vec3<f32>,
+    // The segment the next hit ends (1: the camera ray).
+    seg: u32,
+    d: vec3<f32>,
+    rng: u32,
+    beta: vec3<f32>,
+    pdf_bsdf: f32,
+    sum: vec3<f32>,
+    // 1 while the last scattering was specular (or at the camera).
+    specular: u32,
+}
+
+// The area-light sample of a vertex: the shadow ray (origin, dir, up to dist) and the radiance
+// it adds to the path when nothing blocks it.
+struct NeeRay {
+    origin: vec3<f32>,
+    dist: f32,
+    dir: vec3<f32>,
+    valid: u32,
+    value: vec3<f32>,
+    pad: u32,
+}
+
+fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
+    let a = pdf_a * pdf_a;
+    let b = pdf_b * pdf_b;
+    if a + b > 0.0 {
+        return a / (a + b);
+    }
+    return 0.0;
+}
+
+fn max3(v: vec3<f32>) -> f32 {
+    return max(v.x, max(v.y, v.z));
+}
+
+// The camera ray and random stream of sample s of pixel (x, y).
+fn path_start(x: u32, y: u32, s: u32) -> PathState {
+    let pixel = y * frame.width + x;
+    let ray = ray_through(frame, x, y, pixel_jitter(pixel, s, frame.seed));
+    return PathState(ray.origin, 1u, ray.dir, sampler_new(pixel, s, frame.seed), vec3<f32>(1.0), 0.0, vec3<f32>(0.0), 1u);
+}
+
+fn nee_none() -> NeeRay {
+    return NeeRay(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u);
+}
+
+// Shades the vertex where segment p.seg of path p meets hit (or leaves the scene): adds to
+// p.sum what reaches the camera from there except the area-light sample, which goes to nee;
+// returns whether the path goes on (p then holds its next ray).
+fn shade_vertex(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeRay>) -> bool {
+    // The stream in a variable of its own (samplers take a pointer to it).
+    var rng = (*p).rng;
+    let more = shade_with(p, hit, nee, &rng);
+    (*p).rng = rng;
+    return more;
+}
+
+fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeRay>, rng: ptr<function, u32>) -> bool {
+    *nee = nee_none();
+    let o = (*p).o;
+    let d = (*p).d;
+    let seg = (*p).seg;
+    if seg > frame.max_depth {
+        // max_depth 0: not even the camera ray counts.
+        return false;
+    }
+    if !hit.found {
+#ifdef ENVIRONMENT
+        // The environment, weighted against next-event estimation's samples of it.
+        var pdf_env = 0.0;
+        if (*p).specular == 0u {
+            pdf_env = env_pdf(d);
+        }
+        var w = 1.0;
+        if pdf_env > 0.0 {
+            w = power_heuristic((*p).pdf_bsdf, pdf_env);
+        }
+        (*p).sum += (*p).beta * env_background(d) * w;
+#else
+        (*p).sum += (*p).beta * frame.background;
+#endif
+        return false;
+    }
+    let untextured = materials[hit_material(hit)];
+#ifdef TEXTURES
+    let m = textured(untextured, hit.prim, o + d * hit.t);
+#else
+    let m = untextured;
+#endif
+    let n = hit_normal(hit, o, d);
+    let front = dot(d, n) < 0.0;
+    let ns = select(-n, n, front);
+#ifdef EMISSIVE
+    if m.kind == MAT_EMISSIVE {
+        let cos_l = emitted_cos(m.flags, -dot(d, n));
+        if cos_l > 0.0 {
+            let kind = hit.prim >> INDEX_BITS;
+            let sampled = kind == KIND_TRIANGLE || kind == KIND_SPHERE;
+            var w = 1.0;
+            if (*p).specular == 0u && sampled {
+                // Emitters are sampled by their untextured radiance (emitters::sample_light).
+                w = power_heuristic((*p).pdf_bsdf, area_pdf(untextured.radiance, hit.t * hit.t, cos_l));
+            }
+            (*p).sum += (*p).beta * m.radiance * w;
+        }
+    }
+#endif
+    if seg == frame.max_depth {
+        return false;
+    }
+    let wo = -d;
+    let u_light = uniform3(rng);
+    if !is_specular(m) {
+        let x = o + d * hit.t;
+        let so = spawn_origin(o, d, hit.t, ns);
+#ifdef LIGHTS
+        // Point and directional lights, each at every vertex (render::path: chosen by power
+        // with the area lights, one could be starved).
+        for (var i = 0u; i < frame.num_lights; i += 1u) {
+            let dl = delta_light(lights[i], x);
+            if dl.valid {
+                let ev = bsdf_eval(m, wo, dl.dir, ns);
+                if max3(ev.f_cos) > 0.0 && !occluded(so, dl.dir, 0.0, dl.dist * SHADOW_REACH) {
+                    (*p).sum += (*p).beta * ev.f_cos * dl.value;
+                }
+            }
+        }
+#endif
+        let ls = sample_light(x, u_light);
+        if ls.valid {
+            let ev = bsdf_eval(m, wo, ls.dir, ns);
+            if max3(ev.f_cos) > 0.0 {
+                let value = (*p).beta * ev.f_cos * ls.value * power_heuristic(ls.pdf, ev.pdf);
+                *nee = NeeRay(so, ls.dist * SHADOW_REACH, ls.dir, 1u, value, 0u);
+            }
+        }
+    }
+    let bs = bsdf_sample(m, wo, ns, front, uniform3(rng));
+    if !bs.valid {
+        return false;
+    }
+    (*p).beta = (*p).beta * bs.weight;
+    (*p).specular = select(0u, 1u, bs.specular);
+    (*p).pdf_bsdf = bs.pdf;
+    if seg >= frame.rr_depth {
+        let q = min(max3((*p).beta), 0.95);
+        if next_f32(rng) >= q {
+            return false;
+        }
+        (*p).beta = (*p).beta / q;
+    }
+    let side = select(-n, n, dot(bs.dir, n) >= 0.0);
+    (*p).o = spawn_origin(o, d, hit.t, side);
+    (*p).d = bs.dir;
+    (*p).seg = seg + 1u;
+    return true;
+}
+
+// A finished sample's radiance; a non-finite one (never on a valid scene) counts as black.
+fn finite_or_black(c: vec3<f32>) -> vec3<f32> {
+    return select(vec3<f32>(0.0), c, all(abs(c) <= vec3<f32>(F32_MAX)));
+}
