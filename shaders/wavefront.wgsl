@@ -48,13 +48,13 @@ struct WfShadow {
 @group(1) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
 @group(1) @binding(7) var<storage, read_write> output: array<vec4<f32>>;
 
-const WORKGROUP: u32 = #{WAVEFRONT_WORKGROUP};
-const PATHS_IN: u32 = #{WF_PATHS_IN};
-const PATHS_OUT: u32 = #{WF_PATHS_OUT};
-const SHADOWS_OUT: u32 = #{WF_SHADOWS_OUT};
-const SHADOWS_IN: u32 = #{WF_SHADOWS_IN};
-const ARGS_PATHS: u32 = #{WF_ARGS_PATHS};
-const ARGS_SHADOWS: u32 = #{WF_ARGS_SHADOWS};
+const WAVEFRONT_WORKGROUP: u32 = #{WAVEFRONT_WORKGROUP};
+const WF_PATHS_IN: u32 = #{WF_PATHS_IN};
+const WF_PATHS_OUT: u32 = #{WF_PATHS_OUT};
+const WF_SHADOWS_OUT: u32 = #{WF_SHADOWS_OUT};
+const WF_SHADOWS_IN: u32 = #{WF_SHADOWS_IN};
+const WF_ARGS_PATHS: u32 = #{WF_ARGS_PATHS};
+const WF_ARGS_SHADOWS: u32 = #{WF_ARGS_SHADOWS};
 
 // Paths of the band: one per pixel of the rectangle frame.tile_origin, frame.tile_size.
 fn band_paths() -> u32 {
@@ -65,7 +65,7 @@ fn pixel_of(i: u32) -> vec2<u32> {
     return frame.tile_origin + vec2<u32>(i % frame.tile_size.x, i / frame.tile_size.x);
 }
 
-@compute @workgroup_size(WORKGROUP, 1, 1)
+@compute @workgroup_size(WAVEFRONT_WORKGROUP, 1, 1)
 fn wf_generate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
     if i >= band_paths() {
@@ -77,9 +77,9 @@ fn wf_generate(@builtin(global_invocation_id) gid: vec3<u32>) {
     queue_in[i] = i;
 }
 
-@compute @workgroup_size(WORKGROUP, 1, 1)
+@compute @workgroup_size(WAVEFRONT_WORKGROUP, 1, 1)
 fn wf_extend(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= atomicLoad(&counters[PATHS_IN]) {
+    if gid.x >= atomicLoad(&counters[WF_PATHS_IN]) {
         return;
     }
     let p = queue_in[gid.x];
@@ -94,9 +94,9 @@ fn take_pending(p: u32) -> vec3<f32> {
     return select(vec3<f32>(0.0), e.xyz, e.w != 0.0);
 }
 
-@compute @workgroup_size(WORKGROUP, 1, 1)
+@compute @workgroup_size(WAVEFRONT_WORKGROUP, 1, 1)
 fn wf_shade(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= atomicLoad(&counters[PATHS_IN]) {
+    if gid.x >= atomicLoad(&counters[WF_PATHS_IN]) {
         return;
     }
     let p = queue_in[gid.x];
@@ -109,13 +109,13 @@ fn wf_shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     paths[p] = st;
     if nee.valid != 0u {
         pending[p] = vec4<f32>(nee.value, 1.0);
-        let k = atomicAdd(&counters[SHADOWS_OUT], 1u);
+        let k = atomicAdd(&counters[WF_SHADOWS_OUT], 1u);
         shadows[k] = WfShadow(nee.origin, p, nee.dir, nee.dist);
     } else {
         pending[p] = vec4<f32>(0.0);
     }
     if more {
-        queue_out[atomicAdd(&counters[PATHS_OUT], 1u)] = p;
+        queue_out[atomicAdd(&counters[WF_PATHS_OUT], 1u)] = p;
     }
 }
 
@@ -123,17 +123,17 @@ fn wf_shade(@builtin(global_invocation_id) gid: vec3<u32>) {
 // input, its shadow rays the input of wf_shadow, and the indirect dispatch sizes follow.
 @compute @workgroup_size(1, 1, 1)
 fn wf_args() {
-    let paths_next = atomicExchange(&counters[PATHS_OUT], 0u);
-    let shadows_next = atomicExchange(&counters[SHADOWS_OUT], 0u);
-    atomicStore(&counters[PATHS_IN], paths_next);
-    atomicStore(&counters[SHADOWS_IN], shadows_next);
-    atomicStore(&counters[ARGS_PATHS], (paths_next + WORKGROUP - 1u) / WORKGROUP);
-    atomicStore(&counters[ARGS_SHADOWS], (shadows_next + WORKGROUP - 1u) / WORKGROUP);
+    let paths_next = atomicExchange(&counters[WF_PATHS_OUT], 0u);
+    let shadows_next = atomicExchange(&counters[WF_SHADOWS_OUT], 0u);
+    atomicStore(&counters[WF_PATHS_IN], paths_next);
+    atomicStore(&counters[WF_SHADOWS_IN], shadows_next);
+    atomicStore(&counters[WF_ARGS_PATHS], (paths_next + WAVEFRONT_WORKGROUP - 1u) / WAVEFRONT_WORKGROUP);
+    atomicStore(&counters[WF_ARGS_SHADOWS], (shadows_next + WAVEFRONT_WORKGROUP - 1u) / WAVEFRONT_WORKGROUP);
 }
 
-@compute @workgroup_size(WORKGROUP, 1, 1)
+@compute @workgroup_size(WAVEFRONT_WORKGROUP, 1, 1)
 fn wf_shadow(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= atomicLoad(&counters[SHADOWS_IN]) {
+    if gid.x >= atomicLoad(&counters[WF_SHADOWS_IN]) {
         return;
     }
     let s = shadows[gid.x];
@@ -142,7 +142,7 @@ fn wf_shadow(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 }
 
-@compute @workgroup_size(WORKGROUP, 1, 1)
+@compute @workgroup_size(WAVEFRONT_WORKGROUP, 1, 1)
 fn wf_finish(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
     if i >= band_paths() {

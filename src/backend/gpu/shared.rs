@@ -150,6 +150,7 @@ mod tests {
             [
                 super::super::Program::Render,
                 super::super::Program::Path,
+                super::super::Program::Wavefront,
                 super::super::Program::Trace,
                 super::super::Program::View,
             ]
