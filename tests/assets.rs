@@ -425,10 +425,11 @@ material = "panel"
     };
     let textured = scene("radiance = [4.0, 4.0, 4.0]\nradiance_texture = \"grey.png\"");
     let plain = scene(&format!("radiance = [{0}, {0}, {0}]", 4.0 * grey));
-    let frame = textured.frame(16, 16);
-    let mut images = vec![("cpu", cpu_path_image(&textured, frame, 16), cpu_path_image(&plain, frame, 16))];
+    // Each scene's own frame: it holds the emitters' normalisation.
+    let (ft, fp) = (textured.frame(16, 16), plain.frame(16, 16));
+    let mut images = vec![("cpu", cpu_path_image(&textured, ft, 16), cpu_path_image(&plain, fp, 16))];
     if let Some(ctx) = gpu().map(Arc::new) {
-        images.push(("gpu", gpu_path_image(&ctx, &textured, frame, 16), gpu_path_image(&ctx, &plain, frame, 16)));
+        images.push(("gpu", gpu_path_image(&ctx, &textured, ft, 16), gpu_path_image(&ctx, &plain, fp, 16)));
     }
     for (backend, a, b) in images {
         let (mut sum_a, mut worst) = (0.0f64, 0.0f64);
