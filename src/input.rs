@@ -60,6 +60,12 @@ pub fn read_text_from(mut reader: impl Read, limit: u64) -> Result<String, ReadE
 /// Reads the text file at `path`, of at most `limit` bytes ([`read_text_from`]); a regular
 /// file larger than that is refused before it is read.
 pub fn read_text(path: &Path, limit: u64) -> Result<String, ReadError> {
+    read_text_from(std::io::BufReader::new(open_within(path, limit)?), limit)
+}
+
+/// Opens the file at `path` for reading at most `limit` bytes: a folder, or a regular file
+/// larger than that, is refused before anything is read.
+fn open_within(path: &Path, limit: u64) -> Result<std::fs::File, ReadError> {
     let file = std::fs::File::open(path).map_err(|e| ReadError::Io(e.to_string()))?;
     let meta = file.metadata().map_err(|e| ReadError::Io(e.to_string()))?;
     if meta.is_dir() {
@@ -68,20 +74,13 @@ pub fn read_text(path: &Path, limit: u64) -> Result<String, ReadError> {
     if meta.is_file() && meta.len() > limit {
         return Err(ReadError::TooLarge { limit });
     }
-    read_text_from(std::io::BufReader::new(file), limit)
+    Ok(file)
 }
 
 /// Reads the binary file at `path` (images, glTF buffers), of at most `limit` bytes: a regular
 /// file larger than that is refused before it is read, a stream as soon as it passes it.
 pub fn read_bytes(path: &Path, limit: u64) -> Result<Vec<u8>, ReadError> {
-    let file = std::fs::File::open(path).map_err(|e| ReadError::Io(e.to_string()))?;
-    let meta = file.metadata().map_err(|e| ReadError::Io(e.to_string()))?;
-    if meta.is_dir() {
-        return Err(ReadError::Io("is a folder".into()));
-    }
-    if meta.is_file() && meta.len() > limit {
-        return Err(ReadError::TooLarge { limit });
-    }
+    let file = open_within(path, limit)?;
     let mut bytes = Vec::new();
     file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| ReadError::Io(e.to_string()))?;
     if bytes.len() as u64 > limit {

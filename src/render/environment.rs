@@ -25,7 +25,7 @@
 
 use super::texture;
 use crate::gpu_types::{ENV_MAP, ENV_UNIFORM, GpuEnvironment, GpuFrame, GpuScene};
-use crate::math::V3;
+use crate::math::{Real, V3};
 use crate::scene::{EnvSampling, Environment, texture::Texels};
 
 const PI: f32 = std::f32::consts::PI;
@@ -35,19 +35,20 @@ const PI: f32 = std::f32::consts::PI;
 pub const SELECT_WITH_EMITTERS: f32 = 0.5;
 
 /// Real spherical harmonics up to l = 2 at unit direction d (the constants of Ramamoorthi &
-/// Hanrahan, eq. 3).
-fn sh9(d: [f64; 3]) -> [f64; 9] {
+/// Hanrahan, eq. 3): in f64 for the projection, in f32 for the lookup the GPU twins.
+fn sh9<R: Real>(d: [R; 3]) -> [R; 9] {
     let [x, y, z] = d;
+    let k = R::from_f64;
     [
-        0.282095,
-        0.488603 * y,
-        0.488603 * z,
-        0.488603 * x,
-        1.092548 * x * y,
-        1.092548 * y * z,
-        0.315392 * (3.0 * z * z - 1.0),
-        1.092548 * x * z,
-        0.546274 * (x * x - y * y),
+        k(0.282095),
+        k(0.488603) * y,
+        k(0.488603) * z,
+        k(0.488603) * x,
+        k(1.092548) * x * y,
+        k(1.092548) * y * z,
+        k(0.315392) * (k(3.0) * z * z - R::ONE),
+        k(1.092548) * x * z,
+        k(0.546274) * (x * x - y * y),
     ]
 }
 
@@ -298,18 +299,7 @@ pub fn diffuse(g: &GpuScene, n: V3<f32>) -> V3<f32> {
         return V3::zero();
     };
     let m = to_map(e, n);
-    let (x, y, z) = (m.x, m.y, m.z);
-    let basis = [
-        0.282095,
-        0.488603 * y,
-        0.488603 * z,
-        0.488603 * x,
-        1.092548 * x * y,
-        1.092548 * y * z,
-        0.315392 * (3.0 * z * z - 1.0),
-        1.092548 * x * z,
-        0.546274 * (x * x - y * y),
-    ];
+    let basis = sh9([m.x, m.y, m.z]);
     let mut sum = V3::zero();
     for (c, b) in e.sh.iter().zip(basis) {
         sum += V3::new(c[0], c[1], c[2]) * b;
