@@ -362,5 +362,6 @@ fn without_a_vulkan_driver_the_cpu_is_measured() {
     let err = stderr_of(&out);
     assert!(out.status.success() && err.contains("measuring the cpu only"), "{err}");
     let table = String::from_utf8_lossy(&out.stdout);
-    assert!(table.contains("| sphere.toml | cpu (") && !table.contains("specialised"), "{table}");
+    assert!(table.contains("\n| cpu | ") && !table.contains("\n| gpu"), "{table}");
+    assert!(table.contains("adapter: none"), "{table}");
 }
