@@ -71,7 +71,10 @@ pub struct GpuMaterial {
     pub roughness: f32,
     /// [`MATERIAL_TWO_SIDED`].
     pub flags: u32,
-    pub _pad: [u32; 2],
+    /// 1 + the index in [`GpuScene::textures`] of the image that multiplies `color`; 0 for none.
+    pub color_texture: u32,
+    /// 1 + the index of the image that multiplies `radiance`; 0 for none.
+    pub radiance_texture: u32,
 }
 
 impl GpuMaterial {
@@ -125,6 +128,73 @@ pub struct GpuEmitter {
     pub pdf: f32,
 }
 
+/// One image in [`GpuScene::texels`], 16 bytes (`TextureInfo` in `shaders/modules/types.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuTexture {
+    pub width: u32,
+    pub height: u32,
+    /// The word of texel (0, 0) in the texel buffer; texel (x, y) follows at y·width + x
+    /// words (8-bit sRGB) or three times that (linear RGB).
+    pub offset: u32,
+    /// Wrap modes (2 bits each, [`crate::scene::texture::Wrap`]) at [`TEXTURE_WRAP_U_SHIFT`]
+    /// and [`TEXTURE_WRAP_V_SHIFT`], [`TEXTURE_NEAREST`], [`TEXTURE_LINEAR_RGB`].
+    pub flags: u32,
+}
+
+pub const TEXTURE_WRAP_U_SHIFT: u32 = 0;
+pub const TEXTURE_WRAP_V_SHIFT: u32 = 2;
+/// Texture flag: nearest-texel lookups (else bilinear).
+pub const TEXTURE_NEAREST: u32 = 1 << 4;
+/// Texture flag: three f32 words of linear RGB per texel (else one word of 8-bit sRGB codes,
+/// red in the low byte).
+pub const TEXTURE_LINEAR_RGB: u32 = 1 << 5;
+/// Words at the start of the texel buffer: the sRGB → linear table of the 256 codes, as f32
+/// bits, which every 8-bit texel is read through.
+pub const SRGB_TABLE_WORDS: u32 = 256;
+
+/// Texture coordinates of one triangle's vertices (scene order, as `triangles`), 24 bytes
+/// (`TriangleUv` in `shaders/modules/types.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuTriangleUv {
+    pub a: [f32; 2],
+    pub b: [f32; 2],
+    pub c: [f32; 2],
+}
+
+/// The environment (`[environment]`), 192 bytes (`Environment` in `shaders/modules/types.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuEnvironment {
+    /// The constant radiance, or what multiplies the map (its strength), per channel.
+    pub radiance: [f32; 3],
+    /// [`ENV_MAP`] | [`ENV_UNIFORM`].
+    pub flags: u32,
+    /// cos and sin of the rotation about +y.
+    pub rot_cos: f32,
+    pub rot_sin: f32,
+    /// Index in [`GpuScene::textures`] of the map.
+    pub texture: u32,
+    /// Probability that next-event estimation samples the environment rather than an area
+    /// emitter (1 without area emitters).
+    pub select_prob: f32,
+    /// Size of the sampling distribution (the map's texels) in
+    /// [`GpuScene::env_distribution`].
+    pub width: u32,
+    pub height: u32,
+    pub _pad: [u32; 2],
+    /// Whitted's diffuse light from the environment: 9 spherical-harmonic coefficients
+    /// (rgb, and a pad word) of its irradiance / π.
+    pub sh: [[f32; 4]; 9],
+}
+
+/// Environment flag: radiance comes from the map (else it is constant).
+pub const ENV_MAP: u32 = 1;
+/// Environment flag: next-event estimation samples directions uniformly (a constant sky, or
+/// for comparison), else by the map's distribution.
+pub const ENV_UNIFORM: u32 = 2;
+
 /// Per-dispatch parameters: the camera frame, image and tile, and render settings (bound as a
 /// read-only storage buffer, see `shaders/modules/bindings.wgsl`).
 #[repr(C)]
@@ -171,6 +241,9 @@ pub struct GpuFrame {
 
 /// Frame flag: the dispatch adds its samples' sum to the output buffer.
 pub const FRAME_ACCUMULATE: u32 = 1;
+/// Frame flag: the scene has an environment ([`GpuScene::environment`]): shader variants
+/// compiled with the environment's code read it only then.
+pub const FRAME_ENVIRONMENT: u32 = 2;
 /// Where `shaders/view.wgsl` finds the viewer's debug mode in [`GpuFrame::flags`] (the mode
 /// shifted left by this), and the modes: the numbers of `ViewMode` in the viewer, shared with
 /// `view.wgsl` and `present.wgsl`.
@@ -199,8 +272,20 @@ pub struct GpuScene {
     pub lights: Vec<GpuLight>,
     /// Path mode's sampled light sources: emissive triangles and spheres.
     pub emitters: Vec<GpuEmitter>,
-    /// 1 / Σ emitter weights ([`GpuFrame::emitter_norm`]); 0 without emitters.
+    /// 1 / Σ emitter weights ([`GpuFrame::emitter_norm`]) times the probability of choosing
+    /// an area emitter rather than the environment; 0 without emitters.
     pub emitter_norm: f32,
+    /// Images ([`crate::render::texture`]), the environment map last.
+    pub textures: Vec<GpuTexture>,
+    /// The sRGB table ([`SRGB_TABLE_WORDS`]) followed by every image's texels; empty when
+    /// no material has a texture and the environment no map.
+    pub texels: Vec<u32>,
+    /// Per triangle, in `triangles` order; empty when no material has a texture.
+    pub triangle_uvs: Vec<GpuTriangleUv>,
+    /// The environment, when the scene has one (one element).
+    pub environment: Vec<GpuEnvironment>,
+    /// The environment map's sampling distribution ([`crate::render::environment`]).
+    pub env_distribution: Vec<f32>,
 }
 
 fn rgb(v: [f64; 3]) -> [f32; 3] {
@@ -276,7 +361,8 @@ impl GpuScene {
                     ior: m.ior as f32,
                     roughness: m.roughness as f32,
                     flags: if m.two_sided { MATERIAL_TWO_SIDED } else { 0 },
-                    _pad: [0; 2],
+                    color_texture: m.color_texture.map_or(0, |t| t + 1),
+                    radiance_texture: m.radiance_texture.map_or(0, |t| t + 1),
                 })
                 .collect(),
             lights: scene
@@ -299,6 +385,11 @@ impl GpuScene {
                 .collect(),
             emitters: Vec::new(),
             emitter_norm: 0.0,
+            textures: Vec::new(),
+            texels: Vec::new(),
+            triangle_uvs: Vec::new(),
+            environment: Vec::new(),
+            env_distribution: Vec::new(),
         };
         if let Ok(tree) = GpuBvh::collapse(bvh, prims) {
             (g.nodes, g.shape_refs, g.leaf_triangles) = (tree.nodes, tree.shape_refs, tree.triangles);
@@ -307,6 +398,21 @@ impl GpuScene {
         let (emitters, norm) = crate::render::emitters::build_emitters(&g);
         g.emitters = emitters;
         g.emitter_norm = norm;
+        let map = scene.environment.as_ref().and_then(|e| e.map.as_ref());
+        if !scene.textures.is_empty() || map.is_some() {
+            (g.textures, g.texels) = crate::render::texture::pack(scene.textures.iter().chain(map));
+        }
+        if g.materials.iter().any(|m| m.color_texture != 0 || m.radiance_texture != 0) {
+            g.triangle_uvs = crate::render::texture::triangle_uvs(scene, prims);
+        }
+        if let Some(env) = &scene.environment {
+            let (e, distribution) =
+                crate::render::environment::build(env, scene.textures.len() as u32, !g.emitters.is_empty());
+            // Area emitters are chosen with probability 1 − select: their densities shrink so.
+            g.emitter_norm *= 1.0 - e.select_prob;
+            g.environment = vec![e];
+            g.env_distribution = distribution;
+        }
         g
     }
 }

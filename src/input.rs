@@ -1,4 +1,5 @@
-//! Input files read within a stated size: scene files, meshes and rays files. A regular file
+//! Input files read within a stated size: scene files, meshes, rays files, images and glTF
+//! buffers. A regular file
 //! over the limit is refused from its size before anything is read; a stream (a pipe, a
 //! device such as /dev/zero) is refused as soon as it passes the limit or shows a NUL byte
 //! (no text format strahl reads has one), so nothing grows without bound.
@@ -59,6 +60,12 @@ pub fn read_text_from(mut reader: impl Read, limit: u64) -> Result<String, ReadE
 /// Reads the text file at `path`, of at most `limit` bytes ([`read_text_from`]); a regular
 /// file larger than that is refused before it is read.
 pub fn read_text(path: &Path, limit: u64) -> Result<String, ReadError> {
+    read_text_from(std::io::BufReader::new(open_within(path, limit)?), limit)
+}
+
+/// Opens the file at `path` for reading at most `limit` bytes: a folder, or a regular file
+/// larger than that, is refused before anything is read.
+fn open_within(path: &Path, limit: u64) -> Result<std::fs::File, ReadError> {
     let file = std::fs::File::open(path).map_err(|e| ReadError::Io(e.to_string()))?;
     let meta = file.metadata().map_err(|e| ReadError::Io(e.to_string()))?;
     if meta.is_dir() {
@@ -67,7 +74,19 @@ pub fn read_text(path: &Path, limit: u64) -> Result<String, ReadError> {
     if meta.is_file() && meta.len() > limit {
         return Err(ReadError::TooLarge { limit });
     }
-    read_text_from(std::io::BufReader::new(file), limit)
+    Ok(file)
+}
+
+/// Reads the binary file at `path` (images, glTF buffers), of at most `limit` bytes: a regular
+/// file larger than that is refused before it is read, a stream as soon as it passes it.
+pub fn read_bytes(path: &Path, limit: u64) -> Result<Vec<u8>, ReadError> {
+    let file = open_within(path, limit)?;
+    let mut bytes = Vec::new();
+    file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| ReadError::Io(e.to_string()))?;
+    if bytes.len() as u64 > limit {
+        return Err(ReadError::TooLarge { limit });
+    }
+    Ok(bytes)
 }
 
 /// `bytes` as a size for messages: "256 MiB", "4 GiB", "1500 bytes".
@@ -108,5 +127,9 @@ mod tests {
         assert_eq!(size_name(1 << 30), "1 GiB");
         assert_eq!(size_name(256 << 20), "256 MiB");
         assert_eq!(size_name(1500), "1500 bytes");
+        assert!(matches!(read_bytes(&path, 1 << 20), Err(ReadError::TooLarge { .. })));
+        std::fs::write(&path, [0u8, 1, 2]).unwrap();
+        assert_eq!(read_bytes(&path, 3).unwrap(), vec![0, 1, 2]);
+        assert!(matches!(read_bytes(&path, 2), Err(ReadError::TooLarge { .. })));
     }
 }

@@ -140,9 +140,16 @@ impl<R: Real> Primitives<R> {
                     p.planes.push(Tagged { shape: plane, tag: tag(0) })
                 }
                 Geometry::Triangle(t) => p.triangles.push(Tagged { shape: t.cast(), tag: tag(0) }),
-                Geometry::Polygon { triangles, .. } | Geometry::Mesh { triangles, .. } => {
+                Geometry::Polygon { triangles, .. } => {
                     for (k, t) in triangles.iter().enumerate() {
                         p.triangles.push(Tagged { shape: t.cast(), tag: tag(k) });
+                    }
+                }
+                Geometry::Mesh { triangles, materials, .. } => {
+                    for (k, t) in triangles.iter().enumerate() {
+                        // A glTF file's triangles carry their own materials.
+                        let material = materials.get(k).copied().unwrap_or(obj.material);
+                        p.triangles.push(Tagged { shape: t.cast(), tag: Tag { material, ..tag(k) } });
                     }
                 }
             }

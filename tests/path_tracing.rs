@@ -56,24 +56,10 @@ material = "furnace"
 /// (pixels are independent estimates).
 fn mean_and_error(img: &Image) -> (f64, f64) {
     let v: Vec<f64> = img.pixels.iter().map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / 3.0).collect();
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    let var = v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
-    (mean, (var / n).sqrt())
+    common::mean_and_error(&v)
 }
 
-fn cpu_image(prep: &Arc<Prepared>, frame: GpuFrame, spp: u32) -> Image {
-    let mut p = cpu::PathAccumulator::new(prep.clone(), frame);
-    p.add_samples(spp);
-    p.image()
-}
-
-fn gpu_image(ctx: &Arc<GpuContext>, prep: &Prepared, frame: GpuFrame, spp: u32) -> Image {
-    let buffers = SceneBuffers::upload(ctx, &prep.gpu).unwrap();
-    let mut p = PathAccumulator::new(ctx.clone(), buffers, frame).unwrap();
-    p.add_samples(spp).unwrap();
-    p.image().unwrap()
-}
+use common::{cpu_path_image as cpu_image, gpu_path_image as gpu_image};
 
 fn check_furnace(what: &str, img: &Image, expected: f64) {
     assert_eq!(img.non_finite_count(), 0);
@@ -360,20 +346,36 @@ fn direct_light_from_point_and_directional_lights_equals_whitted() {
 
 /// The wavefront path tracer computes what the megakernel computes, the same sums in the same
 /// order: the same image, bit for bit, progressive and one-shot (several sample passes, paths
-/// of every length up to max_depth).
+/// of every length up to max_depth), for a scene of every material kind and for one lit by an
+/// environment map (sampled by next-event estimation beside a textured area light) with image
+/// textures.
 #[test]
 fn wavefront_and_megakernel_render_the_same_image() {
-    use strahl::backend::gpu::{PathKernels, render::render_tiles, wavefront::Wavefront};
     let Some(ctx) = gpu() else { return };
     let ctx = Arc::new(ctx);
-    let prep = Prepared::new(scene(MIXED));
-    let frame = GpuFrame { spp: 5, ..prep.frame(40, 30) };
-    let same = |what: &str, a: &Image, b: &Image| {
-        assert_eq!(a.non_finite_count(), 0, "{what}");
+    let dir = tempfile::tempdir().unwrap();
+    for (what, scene) in [("mixed", scene(MIXED)), ("environment and textures", env_textured_scene(dir.path()))] {
+        let prep = Prepared::new(scene);
+        if what != "mixed" {
+            assert!(
+                !prep.gpu.environment.is_empty() && !prep.gpu.triangle_uvs.is_empty() && !prep.gpu.emitters.is_empty()
+            );
+        }
+        let frame = GpuFrame { spp: 5, ..prep.frame(40, 30) };
+        assert_wavefront_is_megakernel(&ctx, &prep, frame, what);
+    }
+}
+
+fn assert_wavefront_is_megakernel(ctx: &Arc<GpuContext>, prep: &Prepared, frame: GpuFrame, what: &str) {
+    use strahl::backend::gpu::{PathKernels, render::render_tiles, wavefront::Wavefront};
+    let same = |how: &str, a: &Image, b: &Image| {
+        assert_eq!(a.non_finite_count(), 0, "{what}, {how}");
         let differing = a.pixels.iter().zip(&b.pixels).filter(|(x, y)| x != y).count();
-        assert_eq!(differing, 0, "{what}: {differing} of {} pixels differ", a.pixels.len());
+        assert_eq!(differing, 0, "{what}, {how}: {differing} of {} pixels differ", a.pixels.len());
+        let lit = a.pixels.iter().filter(|p| p.iter().any(|&c| c > 0.0)).count();
+        assert!(lit > a.pixels.len() / 2, "{what}, {how}: only {lit} pixels lit");
     };
-    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+    let buffers = SceneBuffers::upload(ctx, &prep.gpu).unwrap();
     let mut wf = PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Wavefront).unwrap();
     assert_eq!(wf.kernels(), PathKernels::Wavefront);
     wf.add_samples(2).unwrap();
@@ -382,10 +384,9 @@ fn wavefront_and_megakernel_render_the_same_image() {
     mega.add_samples(5).unwrap();
     same("progressive", &wf.image().unwrap(), &mega.image().unwrap());
     let (one_shot, _) =
-        Wavefront::new(&ctx, buffers.clone(), buffers.key, frame).unwrap().render(&ctx, &|_, _| {}).unwrap();
+        Wavefront::new(ctx, buffers.clone(), buffers.key, frame).unwrap().render(ctx, &|_, _| {}).unwrap();
     let whole = Region::whole(frame.width, frame.height);
-    let (reference, _) =
-        render_tiles(&ctx, &buffers, &frame, RenderMode::Path, buffers.key, whole, &|_, _| {}).unwrap();
+    let (reference, _) = render_tiles(ctx, &buffers, &frame, RenderMode::Path, buffers.key, whole, &|_, _| {}).unwrap();
     same("one-shot", &one_shot, &reference);
     // A part of a split render: the region's pixels of the whole render, from both tracers.
     let region = Region { x0: 7, y0: 3, x1: 33, y1: 29 };
@@ -397,11 +398,83 @@ fn wavefront_and_megakernel_render_the_same_image() {
             .map(|(x, y)| reference.pixels[(y * frame.width + x) as usize])
             .collect(),
     };
-    let (part, _) = Wavefront::for_region(&ctx, buffers.clone(), buffers.key, frame, region)
+    let (part, _) = Wavefront::for_region(ctx, buffers.clone(), buffers.key, frame, region)
         .unwrap()
-        .render(&ctx, &|_, _| {})
+        .render(ctx, &|_, _| {})
         .unwrap();
     same("wavefront region", &part, &crop);
-    let (part, _) = render_tiles(&ctx, &buffers, &frame, RenderMode::Path, buffers.key, region, &|_, _| {}).unwrap();
+    let (part, _) = render_tiles(ctx, &buffers, &frame, RenderMode::Path, buffers.key, region, &|_, _| {}).unwrap();
     same("megakernel region", &part, &crop);
+}
+
+/// A textured floor (an OBJ mesh with `vt`), a glass sphere and a two-sided emissive panel with
+/// an emission texture, under an environment map (a gradient sky with a small bright sun,
+/// rotated): written to `dir`.
+fn env_textured_scene(dir: &Path) -> Scene {
+    image::RgbImage::from_fn(8, 8, |x, y| image::Rgb(if (x + y) % 2 == 0 { [230, 200, 40] } else { [20, 60, 220] }))
+        .save(dir.join("checker.png"))
+        .unwrap();
+    let sky = |x: u32, y: u32| {
+        if (5..7).contains(&x) && y == 3 { [900.0, 800.0, 600.0] } else { [0.2, 0.3, 0.1 + y as f32 * 0.05] }
+    };
+    image::Rgb32FImage::from_fn(32, 16, |x, y| image::Rgb(sky(x, y))).save(dir.join("sky.exr")).unwrap();
+    let quad = |name: &str, v: [[f32; 3]; 4]| {
+        let mut obj = String::new();
+        for p in v {
+            obj += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+        }
+        obj += "vt 0 0\nvt 3 0\nvt 3 3\nvt 0 3\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+        std::fs::write(dir.join(name), obj).unwrap();
+    };
+    quad("floor.obj", [[-3.0, 0.0, -3.0], [-3.0, 0.0, 3.0], [3.0, 0.0, 3.0], [3.0, 0.0, -3.0]]);
+    quad("panel.obj", [[-1.5, 0.2, 1.5], [1.5, 0.2, 1.5], [1.5, 1.7, 1.5], [-1.5, 1.7, 1.5]]);
+    let toml = r#"
+[camera]
+eye = [0.0, 1.6, -4.0]
+look_at = [0.0, 0.5, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 55.0
+[image]
+width = 40
+height = 30
+[render]
+mode = "path"
+max_depth = 5
+[[materials]]
+name = "floor"
+type = "diffuse"
+color = [0.9, 0.9, 0.9]
+texture = "checker.png"
+[[materials]]
+name = "glow"
+type = "emissive"
+radiance = [3.0, 3.0, 3.0]
+radiance_texture = "checker.png"
+two_sided = true
+[[materials]]
+name = "glass"
+type = "dielectric"
+[[objects]]
+type = "mesh"
+file = "floor.obj"
+material = "floor"
+[[objects]]
+type = "mesh"
+file = "panel.obj"
+material = "glow"
+[[objects]]
+type = "sphere"
+center = [0.6, 0.5, 0.0]
+radius = 0.5
+material = "glass"
+[environment]
+file = "sky.exr"
+strength = 0.8
+rotation = 30.0
+"#;
+    let path = dir.join("env.toml");
+    std::fs::write(&path, toml).unwrap();
+    let s = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    s
 }

@@ -25,6 +25,15 @@
 #ifdef TRIANGLES
 #import strahl::types::{Triangle, LeafTriangle}
 #endif
+#ifdef TEXELS
+#import strahl::types::TextureInfo
+#endif
+#ifdef TEXTURES
+#import strahl::types::TriangleUv
+#endif
+#ifdef ENVIRONMENT
+#import strahl::types::Environment
+#endif
 
 @group(0) @binding(0) var<storage, read> frame: Frame;
 #ifdef SPHERES
@@ -58,3 +67,17 @@
 @group(0) @binding(7) var<storage, read> materials: array<Material>;
 @group(0) @binding(8) var<storage, read> lights: array<Light>;
 @group(0) @binding(9) var<storage, read> emitters: array<Emitter>;
+// Images (TEXELS: TEXTURES or ENV_MAP): the table and the packed texels (render::texture).
+#ifdef TEXELS
+@group(0) @binding(11) var<storage, read> textures: array<TextureInfo>;
+@group(0) @binding(12) var<storage, read> texels: array<u32>;
+#endif
+#ifdef TEXTURES
+@group(0) @binding(13) var<storage, read> triangle_uvs: array<TriangleUv>;
+#endif
+#ifdef ENVIRONMENT
+@group(0) @binding(14) var<storage, read> environment: array<Environment>;
+#endif
+#ifdef ENV_MAP
+@group(0) @binding(15) var<storage, read> env_distribution: array<f32>;
+#endif

@@ -11,6 +11,14 @@
 #ifdef SPHERES
 #import strahl::bindings::spheres
 #endif
+#ifdef ENVIRONMENT
+#import strahl::types::FRAME_ENVIRONMENT
+#import strahl::bindings::environment
+#import strahl::environment::env_sample
+#endif
+#ifdef TEXTURES
+#import strahl::texture::factor_at
+#endif
 
 const TWO_PI: f32 = 6.28318530717959;
 
@@ -69,26 +77,42 @@ fn delta_light(l: Light, p: vec3<f32>) -> LightSample {
     return LightSample(-l.vector, F32_MAX, l.intensity, 1.0, true);
 }
 
-// An area-light sample for p from three uniform numbers (render::emitters::sample).
+// A light sample for p from three uniform numbers: the environment or an area light
+// (render::emitters::sample).
 fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     let none = LightSample(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, false);
+    var ux = u.x;
+#ifdef ENVIRONMENT
+    // The environment with probability select_prob, else an area emitter with u.x rescaled.
+    if (frame.flags & FRAME_ENVIRONMENT) != 0u {
+        let sel = environment[0].select_prob;
+        if frame.num_emitters == 0u || ux < sel {
+            let es = env_sample(u.y, u.z);
+            return LightSample(es.dir, F32_MAX, es.value, es.pdf, es.valid);
+        }
+        ux = (ux - sel) / (1.0 - sel);
+    }
+#endif
     if frame.num_emitters == 0u {
         return none;
     }
-    let e = emitters[select_emitter(u.x)];
+    let e = emitters[select_emitter(ux)];
     let kind = e.prim >> INDEX_BITS;
     let i = e.prim & INDEX_MASK;
     var q = vec3<f32>(0.0);
     var n = vec3<f32>(0.0, 0.0, 1.0);
     var material = 0u;
     var found = false;
+    // Barycentric weights of vb and vc at a triangle's sampled point.
+    var bc = vec2<f32>(0.0);
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
         let t = triangles[i];
         let su = sqrt(u.y);
         let b0 = 1.0 - su;
         let b1 = u.z * su;
-        q = t.va * b0 + t.vb * b1 + t.vc * (1.0 - b0 - b1);
+        bc = vec2<f32>(b1, 1.0 - b0 - b1);
+        q = t.va * b0 + t.vb * b1 + t.vc * bc.y;
         n = normalize(cross(t.vb - t.va, t.vc - t.va));
         material = t.material;
         found = true;
@@ -119,5 +143,11 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         return none;
     }
     let pdf = area_pdf(m.radiance, d2, cos_l);
-    return LightSample(dir, dist, m.radiance / pdf, pdf, true);
+    var radiance = m.radiance;
+#ifdef TEXTURES
+    if kind == KIND_TRIANGLE {
+        radiance = radiance * factor_at(m.radiance_texture, i, bc);
+    }
+#endif
+    return LightSample(dir, dist, radiance / pdf, pdf, true);
 }

@@ -23,6 +23,12 @@
 #import strahl::sampler::{sampler_new, next_f32, uniform3, pixel_jitter}
 #import strahl::bsdf::{bsdf_sample, bsdf_eval, is_specular}
 #import strahl::emitters::{sample_light, area_pdf, emitted_cos}
+#ifdef TEXTURES
+#import strahl::texture::textured
+#endif
+#ifdef ENVIRONMENT
+#import strahl::environment::{env_background, env_pdf}
+#endif
 
 // Shadow rays stop this fraction short of the light point (render::path::SHADOW_REACH).
 const SHADOW_REACH: f32 = #{SHADOW_REACH};
@@ -98,10 +104,28 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
         return false;
     }
     if !hit.found {
+#ifdef ENVIRONMENT
+        // The environment, weighted against next-event estimation's samples of it.
+        var pdf_env = 0.0;
+        if (*p).specular == 0u {
+            pdf_env = env_pdf(d);
+        }
+        var w = 1.0;
+        if pdf_env > 0.0 {
+            w = power_heuristic((*p).pdf_bsdf, pdf_env);
+        }
+        (*p).sum += (*p).beta * env_background(d) * w;
+#else
         (*p).sum += (*p).beta * frame.background;
+#endif
         return false;
     }
-    let m = materials[hit_material(hit)];
+    let untextured = materials[hit_material(hit)];
+#ifdef TEXTURES
+    let m = textured(untextured, hit.prim, o + d * hit.t);
+#else
+    let m = untextured;
+#endif
     let n = hit_normal(hit, o, d);
     let front = dot(d, n) < 0.0;
     let ns = select(-n, n, front);
@@ -113,7 +137,8 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
             let sampled = kind == KIND_TRIANGLE || kind == KIND_SPHERE;
             var w = 1.0;
             if (*p).specular == 0u && sampled {
-                w = power_heuristic((*p).pdf_bsdf, area_pdf(m.radiance, hit.t * hit.t, cos_l));
+                // Emitters are sampled by their untextured radiance (emitters::sample_light).
+                w = power_heuristic((*p).pdf_bsdf, area_pdf(untextured.radiance, hit.t * hit.t, cos_l));
             }
             (*p).sum += (*p).beta * m.radiance * w;
         }

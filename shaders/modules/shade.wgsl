@@ -10,6 +10,12 @@
 #import strahl::traverse::{nearest_hit, occluded, hit_normal, hit_material}
 #import strahl::spawn::spawn_origin
 #import strahl::raygen::primary_ray
+#ifdef TEXTURES
+#import strahl::texture::textured
+#endif
+#ifdef ENVIRONMENT
+#import strahl::environment::{env_background, env_diffuse}
+#endif
 
 // Depth of the explicit ray stack (render::shade::WHITTED_STACK).
 const WHITTED_STACK: u32 = #{WHITTED_STACK};
@@ -82,6 +88,10 @@ fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec
 fn direct_light(o: vec3<f32>, d: vec3<f32>, t: f32, ns: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
     let p = o + d * t;
     var sum = frame.ambient;
+#ifdef ENVIRONMENT
+    // The environment's unshadowed diffuse light joins the ambient term.
+    sum += env_diffuse(ns);
+#endif
 #ifdef LIGHTS
     for (var i = 0u; i < frame.num_lights; i += 1u) {
         let light = lights[i];
@@ -131,10 +141,18 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
         let cur = stack[sp];
         let hit = nearest_hit(cur.origin, cur.dir, 0.0, F32_MAX);
         if !hit.found {
+#ifdef ENVIRONMENT
+            color += cur.weight * env_background(cur.dir);
+#else
             color += cur.weight * frame.background;
+#endif
             continue;
         }
+#ifdef TEXTURES
+        let m = textured(materials[hit_material(hit)], hit.prim, cur.origin + cur.dir * hit.t);
+#else
         let m = materials[hit_material(hit)];
+#endif
         let n = hit_normal(hit, cur.origin, cur.dir);
         let front = dot(cur.dir, n) < 0.0;
         let ns = select(-n, n, front);

@@ -95,7 +95,38 @@ struct Material {
     ior: f32,
     roughness: f32,
     flags: u32,
+    // 1 + index in `textures` of the image multiplying color / radiance; 0: none.
+    color_texture: u32,
+    radiance_texture: u32,
+}
+
+// An image in `texels` (gpu_types::GpuTexture).
+struct TextureInfo {
+    width: u32,
+    height: u32,
+    offset: u32,
+    flags: u32,
+}
+
+// Texture coordinates of a triangle's vertices (gpu_types::GpuTriangleUv).
+struct TriangleUv {
+    a: vec2<f32>,
+    b: vec2<f32>,
+    c: vec2<f32>,
+}
+
+// The environment (gpu_types::GpuEnvironment).
+struct Environment {
+    radiance: vec3<f32>,
+    flags: u32,
+    rot_cos: f32,
+    rot_sin: f32,
+    texture: u32,
+    select_prob: f32,
+    width: u32,
+    height: u32,
     pad: vec2<u32>,
+    sh: array<vec4<f32>, 9>,
 }
 
 struct Light {
@@ -160,8 +191,21 @@ const LIGHT_STAND_IN: u32 = #{LIGHT_STAND_IN};
 const MATERIAL_TWO_SIDED: u32 = #{MATERIAL_TWO_SIDED};
 
 const FRAME_ACCUMULATE: u32 = #{FRAME_ACCUMULATE};
+const FRAME_ENVIRONMENT: u32 = #{FRAME_ENVIRONMENT};
 const QUERY_FOUND: u32 = #{QUERY_FOUND};
 const QUERY_ENTER: u32 = #{QUERY_ENTER};
+
+// Texture flags and wrap modes (gpu_types, scene::texture::Wrap).
+const TEXTURE_WRAP_U_SHIFT: u32 = #{TEXTURE_WRAP_U_SHIFT};
+const TEXTURE_WRAP_V_SHIFT: u32 = #{TEXTURE_WRAP_V_SHIFT};
+const TEXTURE_NEAREST: u32 = #{TEXTURE_NEAREST};
+const TEXTURE_LINEAR_RGB: u32 = #{TEXTURE_LINEAR_RGB};
+const WRAP_REPEAT: u32 = #{WRAP_REPEAT};
+const WRAP_CLAMP: u32 = #{WRAP_CLAMP};
+const WRAP_MIRROR: u32 = #{WRAP_MIRROR};
+// Environment flags (gpu_types::ENV_MAP, ENV_UNIFORM; ENV_MAP names a feature's shader def).
+const ENV_FLAG_MAP: u32 = #{ENV_FLAG_MAP};
+const ENV_FLAG_UNIFORM: u32 = #{ENV_FLAG_UNIFORM};
 
 // The largest f32: stands for "no upper bound" (WGSL cannot spell infinity). Roots are
 // compared with `t < tmax`, so FLT_MAX and +inf reject exactly the same values.

@@ -149,8 +149,17 @@ pub fn open_backend(flag: Option<BackendChoice>, workload: Workload) -> anyhow::
     Ok(selection.selected)
 }
 
-/// The one-line summary of a prepared scene, on stderr.
+/// What loading a scene read but did not use (skipped glTF primitives, unsupported
+/// extensions...), one `warning:` line each on stderr.
+pub fn print_scene_warnings(scene: &strahl::scene::Scene) {
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+}
+
+/// The one-line summary of a prepared scene, on stderr, after what loading it warned about.
 pub fn print_scene_summary(prep: &strahl::render::Prepared) {
+    print_scene_warnings(&prep.scene);
     eprintln!(
         "scene: {} objects, {} triangles, BVH {} nodes (depth {}) built in {:.3} s",
         prep.scene.objects.len(),

@@ -10,11 +10,11 @@ use strahl::backend::gpu::{self, SceneBuffers};
 use strahl::backend::select::{Selected, Workload};
 use strahl::image::{ExrPlacement, Region};
 use strahl::render::Prepared;
-use strahl::scene::{RenderMode, Scene};
+use strahl::scene::{LoadOptions, RenderMode, Scene};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// Scene file (TOML).
+    /// Scene file: TOML, or a glTF file (.gltf, .glb) on its own.
     pub scene: PathBuf,
     /// Output image: .png (8-bit sRGB) or .exr (linear float).
     #[arg(short, long, value_parser = super::image_file_name)]
@@ -48,6 +48,10 @@ pub struct RenderArgs {
     /// Seed of the path tracer's random numbers (renders with different seeds are independent).
     #[arg(long, default_value_t = 0)]
     pub seed: u32,
+    /// A glTF file's camera to render from: its index in the file's `cameras` (default: the
+    /// first perspective camera placed in the scene).
+    #[arg(long)]
+    pub camera: Option<usize>,
 }
 
 /// `--mode`: how light transport is computed.
@@ -101,7 +105,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     // A missing, read-only or misnamed output fails now, not after the render.
     strahl::output::check_file_target(&a.output)?;
-    let mut scene = Scene::load(&a.scene)?;
+    if a.camera.is_some() && !strahl::scene::gltf::is_gltf_path(&a.scene) {
+        return Err(super::usage_error("--camera: only a glTF file (.gltf, .glb) has cameras to choose from"));
+    }
+    let mut scene = Scene::load_with(&a.scene, &LoadOptions { camera: a.camera })?;
     if let Some(spp) = a.spp {
         scene.render.spp = spp;
     }

@@ -48,6 +48,7 @@ pub fn run(a: TraceArgs) -> Result<()> {
         strahl::output::check_file_target(path)?;
     }
     let scene = Scene::load(&a.scene)?;
+    super::print_scene_warnings(&scene);
     strahl::render::check_memory(&scene, strahl::render::available_memory())?;
     let rays = read_rays(&a.rays)?;
     let start = Instant::now();

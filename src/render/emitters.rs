@@ -35,12 +35,44 @@ fn mean(c: [f32; 3]) -> f32 {
 /// intensity of a Lambertian emitter. Shadow rays pass through emissive surfaces, so the
 /// object does not hide its own stand-in. Planes have no finite area and get none.
 pub fn stand_in_lights(scene: &Scene) -> Vec<GpuLight> {
-    let mut out = Vec::new();
-    for o in &scene.objects {
-        let m = &scene.materials[o.material as usize];
+    // The radiance an emissive material gives off on average (its texture's mean included).
+    let emitted = |material: u32| -> Option<[f64; 3]> {
+        let m = &scene.materials[material as usize];
         if m.kind != MaterialKind::Emissive || m.radiance.iter().all(|&c| c <= 0.0) {
+            return None;
+        }
+        let scale = m.radiance_texture.map_or([1.0; 3], |t| scene.textures[t as usize].mean());
+        Some([0, 1, 2].map(|c| m.radiance[c] * scale[c]))
+    };
+    let mut out = Vec::new();
+    let mut push = |centre: V3<f64>, area: f64, radiance: [f64; 3]| {
+        if area > 0.0 {
+            out.push(GpuLight {
+                vector: centre.cast::<f32>().to_array(),
+                kind: LIGHT_POINT,
+                intensity: radiance.map(|c| (c * area) as f32),
+                flags: LIGHT_STAND_IN,
+            });
+        }
+    };
+    for o in &scene.objects {
+        if let Geometry::Mesh { triangles, materials, .. } = &o.geometry
+            && !materials.is_empty()
+        {
+            // A glTF mesh: one stand-in per emissive material it uses.
+            let mut groups: std::collections::BTreeMap<u32, Vec<crate::geometry::Triangle<f64>>> = Default::default();
+            for (t, &m) in triangles.iter().zip(materials) {
+                if emitted(m).is_some() {
+                    groups.entry(m).or_default().push(*t);
+                }
+            }
+            for (m, tris) in groups {
+                let (centre, area) = area_centroid(&tris);
+                push(centre, area, emitted(m).expect("grouped by emission"));
+            }
             continue;
         }
+        let Some(radiance) = emitted(o.material) else { continue };
         let (centre, area) = match &o.geometry {
             Geometry::Sphere(s) => (s.center, PI * s.radius * s.radius),
             Geometry::Cylinder(c) => ((c.p1 + c.p2) * 0.5, 2.0 * c.radius * (c.p2 - c.p1).length()),
@@ -48,15 +80,7 @@ pub fn stand_in_lights(scene: &Scene) -> Vec<GpuLight> {
             Geometry::Triangle(t) => area_centroid(std::slice::from_ref(t)),
             Geometry::Polygon { triangles, .. } | Geometry::Mesh { triangles, .. } => area_centroid(triangles),
         };
-        if area <= 0.0 {
-            continue;
-        }
-        out.push(GpuLight {
-            vector: centre.cast::<f32>().to_array(),
-            kind: LIGHT_POINT,
-            intensity: m.radiance.map(|c| (c * area) as f32),
-            flags: LIGHT_STAND_IN,
-        });
+        push(centre, area, radiance);
     }
     out
 }
@@ -167,19 +191,31 @@ pub fn delta_light(l: &GpuLight, p: V3<f32>) -> Option<LightSample> {
 /// Draws an area-light sample for shading point `p` from three uniform numbers; None when the
 /// sampled point faces away or the scene has no area emitters.
 pub fn sample(g: &GpuScene, frame: &GpuFrame, p: V3<f32>, u: [f32; 3]) -> Option<LightSample> {
+    let mut u0 = u[0];
+    if let Some(env) = g.environment.first() {
+        // The environment with probability `select`, else an area emitter with u[0] rescaled.
+        if frame.num_emitters == 0 || u0 < env.select_prob {
+            let (dir, value, pdf) = super::environment::sample(g, frame, u[1], u[2])?;
+            return Some(LightSample { dir, dist: f32::MAX, value, pdf });
+        }
+        u0 = (u0 - env.select_prob) / (1.0 - env.select_prob);
+    }
     if frame.num_emitters == 0 {
         return None;
     }
-    let e = &g.emitters[select(&g.emitters[..frame.num_emitters as usize], u[0])];
+    let e = &g.emitters[select(&g.emitters[..frame.num_emitters as usize], u0)];
     let r = PrimRef(e.prim);
+    // Barycentric weights of b and c at the sampled point of a triangle.
+    let (mut b1, mut b2) = (0.0f32, 0.0f32);
     let (q, n, material) = match r.kind() {
         PrimKind::Triangle => {
             let t = &g.triangles[r.index()];
             let (a, b, c) = (V3::from_array(t.va), V3::from_array(t.vb), V3::from_array(t.vc));
             // Uniform on the triangle (Turk 1990 / pbrt-v4 A.5.5).
             let su = u[1].sqrt();
-            let (b0, b1) = (1.0 - su, u[2] * su);
-            (a * b0 + b * b1 + c * (1.0 - b0 - b1), (b - a).cross(c - a).normalize(), t.material)
+            let b0 = 1.0 - su;
+            (b1, b2) = (u[2] * su, 1.0 - b0 - u[2] * su);
+            (a * b0 + b * b1 + c * b2, (b - a).cross(c - a).normalize(), t.material)
         }
         _ => {
             let s = &g.spheres[r.index()];
@@ -200,7 +236,13 @@ pub fn sample(g: &GpuScene, frame: &GpuFrame, p: V3<f32>, u: [f32; 3]) -> Option
         return None;
     }
     let pdf = area_pdf(frame, m.radiance, d2, cos_l);
-    Some(LightSample { dir, dist, value: V3::from_array(m.radiance) / pdf, pdf })
+    let mut radiance = V3::from_array(m.radiance);
+    if r.kind() == PrimKind::Triangle {
+        // An emission texture at the sampled point (its density is that of the untextured
+        // radiance, which both sampling and MIS use).
+        radiance = radiance.mul_elem(super::texture::factor_at(g, m.radiance_texture, r.index(), b1, b2));
+    }
+    Some(LightSample { dir, dist, value: radiance / pdf, pdf })
 }
 
 /// The cosine at the emitter that counts: `cos` for one-sided emitters (≤ 0 from behind),

@@ -1,16 +1,19 @@
 //! Image formation shared by both backends, as stages named like the shaders:
 //! [`camera`] (`raygen.wgsl`), [`spawn`] (`spawn.wgsl`), [`shade`] (`shade.wgsl`, Whitted),
 //! and for path tracing [`sampler`] (`sampler.wgsl`), [`bsdf`] (`bsdf.wgsl`), [`emitters`]
-//! (`emitters.wgsl`) and [`path`] (`path.wgsl`).
+//! (`emitters.wgsl`) and [`path`] (`path.wgsl`); [`texture`] (`texture.wgsl`) and
+//! [`environment`] (`environment.wgsl`) for both modes.
 //! The CPU backend runs these functions; the GPU runs their WGSL twins.
 
 pub mod bsdf;
 pub mod camera;
 pub mod emitters;
+pub mod environment;
 pub mod path;
 pub mod sampler;
 pub mod shade;
 pub mod spawn;
+pub mod texture;
 
 use crate::accel::{Bvh, WideBvh};
 use crate::gpu_types::{GpuFrame, GpuScene};
@@ -104,6 +107,9 @@ impl Prepared {
         f.rr_depth = path::RR_DEPTH;
         f.tile_size = [width, height];
         f.out_pitch = width;
+        if !self.gpu.environment.is_empty() {
+            f.flags |= crate::gpu_types::FRAME_ENVIRONMENT;
+        }
         f
     }
 }

@@ -21,9 +21,11 @@
 use super::bsdf::{self, is_specular};
 use super::camera::ray_through;
 use super::emitters::{self, area_pdf, emitted_cos};
+use super::environment;
 use super::sampler::{Sampler, pixel_jitter};
 use super::shade::ShadeInputs;
 use super::spawn::spawn_origin;
+use super::texture;
 use crate::accel::wide_traverse;
 use crate::math::{Ray, V3};
 use crate::primitives::{Hit, PrimKind};
@@ -107,10 +109,15 @@ pub fn shade_vertex(
         return false;
     }
     let Some(hit) = hit else {
-        p.sum += p.beta.mul_elem(V3::from_array(f.background));
+        // The environment (or the background), weighted against next-event estimation's
+        // samples of it.
+        let pdf_env = if p.specular { 0.0 } else { environment::pdf(g, ray.dir) };
+        let w = if pdf_env > 0.0 { power_heuristic(p.pdf_bsdf, pdf_env) } else { 1.0 };
+        p.sum += p.beta.mul_elem(environment::background(g, f, ray.dir)) * w;
         return false;
     };
-    let m = &g.materials[hit.tag.material as usize];
+    let untextured = &g.materials[hit.tag.material as usize];
+    let m = &texture::textured(g, untextured, hit.prim, ray.at(hit.t));
     let front = ray.dir.dot(hit.normal) < 0.0;
     let ns = if front { hit.normal } else { -hit.normal };
     if m.kind() == MaterialKind::Emissive {
@@ -120,7 +127,8 @@ pub fn shade_vertex(
             let w = if p.specular || !sampled {
                 1.0
             } else {
-                power_heuristic(p.pdf_bsdf, area_pdf(f, m.radiance, hit.t * hit.t, cos_l))
+                // Emitters are sampled by their untextured radiance (emitters::sample).
+                power_heuristic(p.pdf_bsdf, area_pdf(f, untextured.radiance, hit.t * hit.t, cos_l))
             };
             p.sum += p.beta.mul_elem(V3::from_array(m.radiance)) * w;
         }

@@ -7,7 +7,9 @@
 //! same contributions in the same order.
 
 use super::camera::primary_ray;
+use super::environment;
 use super::spawn::spawn_origin;
+use super::texture;
 use crate::accel::{WideBvh, wide_traverse};
 use crate::gpu_types::{GpuFrame, GpuLight, GpuMaterial, GpuScene, LIGHT_POINT};
 use crate::math::{Ray, V3};
@@ -86,7 +88,8 @@ fn shadow_transmittance(inp: &ShadeInputs, from: &Ray<f32>, t: f32, n: V3<f32>, 
 /// plus Σ E·cosθ/π over unshadowed lights.
 fn direct_light(inp: &ShadeInputs, ray: &Ray<f32>, t: f32, ns: V3<f32>, albedo: V3<f32>) -> V3<f32> {
     let p = ray.at(t);
-    let mut sum = V3::from_array(inp.frame.ambient);
+    // The environment's unshadowed diffuse light joins the ambient term.
+    let mut sum = V3::from_array(inp.frame.ambient) + environment::diffuse(inp.gpu, ns);
     for light in &inp.gpu.lights[..inp.frame.num_lights as usize] {
         let (l, dist, e) = light_at(light, p);
         let cos = ns.dot(l);
@@ -125,10 +128,11 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
         sp -= 1;
         let Pending { ray, weight, depth } = stack[sp];
         let Some(hit) = wide_traverse::nearest(inp.wide, inp.prims, &ray, 0.0, f32::INFINITY) else {
-            color += weight.mul_elem(V3::from_array(inp.frame.background));
+            color += weight.mul_elem(environment::background(inp.gpu, inp.frame, ray.dir));
             continue;
         };
-        let m: &GpuMaterial = &inp.gpu.materials[hit.tag.material as usize];
+        let m: &GpuMaterial =
+            &texture::textured(inp.gpu, &inp.gpu.materials[hit.tag.material as usize], hit.prim, ray.at(hit.t));
         let front = ray.dir.dot(hit.normal) < 0.0;
         let ns = if front { hit.normal } else { -hit.normal };
         let albedo = V3::from_array(m.color);

@@ -16,6 +16,10 @@ pub enum SceneError {
     /// A problem in a file that comes with a mesh (its camera file).
     #[error("{path}: {message}")]
     File { path: PathBuf, message: String },
+    /// A problem in a glTF file given on its own; the message starts with the glTF path
+    /// (`meshes[2].primitives[0].indices: ...`).
+    #[error("{path}: {message}")]
+    Gltf { path: PathBuf, message: String },
     /// The scene is valid but larger than strahl accepts.
     #[error("{path}: {message}")]
     TooLarge { path: PathBuf, message: String },

@@ -9,8 +9,10 @@
 
 use super::mesh::{self, Transform};
 use super::polygon;
+use super::texture::{self, ImageKind, Texture};
 use super::{
-    Camera, Geometry, ImageSize, Light, Material, MaterialKind, Object, RenderMode, RenderSettings, Scene, SceneError,
+    Camera, Environment, Geometry, ImageSize, Light, Material, MaterialKind, Object, RenderMode, RenderSettings, Scene,
+    SceneError,
 };
 use crate::geometry::{Cylinder, Plane, Sphere, Triangle};
 use crate::math::V3;
@@ -35,6 +37,18 @@ pub const MAX_SCENE_TRIANGLES: usize = 64_000_000;
 pub const MAX_SCENE_FILE_BYTES: u64 = 256 << 20;
 pub const MAX_DEPTH: i64 = 64;
 pub const MAX_SPP: i64 = 65536;
+/// Most texels of an environment map as rendered (4096 × 2048): its linear RGB texels take 12
+/// bytes each, 96 MiB, which fits one GPU storage buffer on lavapipe (128 MiB). Larger maps are
+/// halved (2 × 2 box filter) until they fit, with a warning.
+pub const MAX_ENVIRONMENT_TEXELS: u64 = 4096 * 2048;
+
+/// What a glTF object adds to the scene besides its geometry.
+struct GltfLoaded<'a> {
+    materials: &'a mut Vec<Material>,
+    textures: &'a mut Vec<Texture>,
+    lights: &'a mut Vec<Light>,
+    warnings: &'a mut Vec<String>,
+}
 
 /// Reads and validates the scene file at `path`; relative mesh paths are resolved against
 /// the file's directory.
@@ -79,6 +93,17 @@ struct SceneDef {
     objects: Vec<Spanned<ObjectDef>>,
     #[serde(default)]
     lights: Vec<Spanned<LightDef>>,
+    #[serde(default)]
+    environment: Option<Spanned<EnvironmentDef>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EnvironmentDef {
+    radiance: Option<SVec>,
+    file: Option<Spanned<String>>,
+    strength: Option<Spanned<f64>>,
+    rotation: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -118,6 +143,8 @@ struct MaterialDef {
     radiance: Option<SVec>,
     roughness: Option<Spanned<f64>>,
     two_sided: Option<Spanned<bool>>,
+    texture: Option<Spanned<String>>,
+    radiance_texture: Option<Spanned<String>>,
 }
 
 /// Every key any object type has; which belong to which type is checked in `object`.
@@ -218,13 +245,14 @@ impl<'de> Deserialize<'de> for ScaleDef {
 const LIGHT_TYPES: [(&str, &[&str]); 2] =
     [("point", &["position", "intensity"]), ("directional", &["direction", "intensity"])];
 
-const OBJECT_TYPES: [(&str, &[&str]); 6] = [
+const OBJECT_TYPES: [(&str, &[&str]); 7] = [
     ("sphere", &["center", "radius", "material"]),
     ("cylinder", &["p1", "p2", "radius", "caps", "material"]),
     ("plane", &["point", "normal", "material"]),
     ("triangle", &["vertices", "material"]),
     ("polygon", &["vertices", "material"]),
     ("mesh", &["file", "translate", "scale", "rotate", "material"]),
+    ("gltf", &["file", "translate", "scale", "rotate"]),
 ];
 
 // ---------------------------------------------------------------------------------------
@@ -432,7 +460,9 @@ fn tidy_toml_message(m: &str) -> String {
         .replace("expected f64", "expected a number")
         .replace("expected i64", "expected an integer")
         .replace("expected a sequence", "expected an array");
-    for name in ["SceneDef", "CameraDef", "ImageDef", "RenderDef", "MaterialDef", "ObjectDef", "LightDef"] {
+    for name in
+        ["SceneDef", "CameraDef", "ImageDef", "RenderDef", "MaterialDef", "ObjectDef", "LightDef", "EnvironmentDef"]
+    {
         m = m.replace(&format!("struct {name}"), "a table");
     }
     m
@@ -512,16 +542,25 @@ impl Cx<'_> {
         }
 
         let camera = self.camera(def.camera.get_ref())?;
+        let mut textures: Vec<Texture> = Vec::new();
+        let mut texture_files: HashMap<std::path::PathBuf, u32> = HashMap::new();
+        let mut warnings = Vec::new();
+        let environment = match &def.environment {
+            Some(e) => Some(self.environment(e, &mut warnings)?),
+            None => None,
+        };
         let render = match &def.render {
-            Some(r) => self.render(r.get_ref())?,
-            None => RenderSettings::default(),
+            Some(r) => self.render(r.get_ref(), environment.is_some())?,
+            None => {
+                RenderSettings { ambient: Self::default_ambient(environment.is_some()), ..RenderSettings::default() }
+            }
         };
 
         let mut materials = Vec::with_capacity(def.materials.len() + 1);
         let mut by_name: HashMap<&str, usize> = HashMap::new();
         for (i, m) in def.materials.iter().enumerate() {
             let field = format!("materials[{i}]");
-            let mat = self.material(m, &field)?;
+            let mat = self.material(m, &field, &mut textures, &mut texture_files)?;
             let name = m.get_ref().name.get_ref().as_str();
             if let Some(&first) = by_name.get(name) {
                 return Err(self.at(
@@ -535,39 +574,49 @@ impl Cx<'_> {
         }
 
         // Check the light list before loading any mesh: it is cheap.
-        let lights = def
+        let mut lights = def
             .lights
             .iter()
             .enumerate()
             .map(|(i, l)| self.light(l, &format!("lights[{i}]")))
             .collect::<Res<Vec<_>>>()?;
 
-        let default_index = materials.len() as u32;
-        let mut need_default = false;
+        // Objects without a material get the grey default, appended after every other
+        // material (glTF files add theirs as they load): its index is patched in at the end.
+        const DEFAULT: u32 = u32::MAX;
         let mut triangles: usize = 0;
         let mut objects = Vec::with_capacity(def.objects.len());
         for (i, o) in def.objects.iter().enumerate() {
             let field = format!("objects[{i}]");
-            let geometry = self.object(o, &field, MAX_SCENE_TRIANGLES - triangles)?;
-            let material = match &o.get_ref().material {
-                Some(name) => match by_name.get(name.get_ref().as_str()) {
-                    Some(&m) => m as u32,
-                    None => {
-                        return Err(self.at(
-                            name.span(),
-                            format!("{field}.material"),
-                            format!(
-                                "unknown material \"{}\"; known: {}",
-                                name.get_ref(),
-                                known_list(materials.iter().map(|m: &Material| m.name.as_str()))
-                            ),
-                        ));
-                    }
-                },
-                None => {
-                    need_default = true;
-                    default_index
-                }
+            let budget = MAX_SCENE_TRIANGLES - triangles;
+            let (geometry, material) = if o.get_ref().kind.get_ref() == "gltf" {
+                let mut loaded = GltfLoaded {
+                    materials: &mut materials,
+                    textures: &mut textures,
+                    lights: &mut lights,
+                    warnings: &mut warnings,
+                };
+                self.gltf_object(o, &field, budget, &mut loaded)?
+            } else {
+                let geometry = self.object(o, &field, budget)?;
+                let material = match &o.get_ref().material {
+                    Some(name) => match by_name.get(name.get_ref().as_str()) {
+                        Some(&m) => m as u32,
+                        None => {
+                            return Err(self.at(
+                                name.span(),
+                                format!("{field}.material"),
+                                format!(
+                                    "unknown material \"{}\"; known: {}",
+                                    name.get_ref(),
+                                    known_list(def.materials.iter().map(|m| m.get_ref().name.get_ref().as_str()))
+                                ),
+                            ));
+                        }
+                    },
+                    None => DEFAULT,
+                };
+                (geometry, material)
             };
             triangles += match &geometry {
                 Geometry::Triangle(_) => 1,
@@ -579,13 +628,211 @@ impl Cx<'_> {
                     "the scene has more than {MAX_SCENE_TRIANGLES} triangles (reached at {field})"
                 )));
             }
+            if materials.len() > MAX_MATERIALS {
+                return Err(self.too_large(format!(
+                    "too many materials: more than {MAX_MATERIALS} (reached at {field}, a glTF file's materials count)"
+                )));
+            }
             objects.push(Object { geometry, material });
         }
-        if need_default {
+        if objects.iter().any(|o| o.material == DEFAULT) {
+            let index = materials.len() as u32;
             materials.push(Material::default_grey());
+            for o in objects.iter_mut().filter(|o| o.material == DEFAULT) {
+                o.material = index;
+            }
         }
+        self.texture_warnings(&objects, &materials, &mut warnings);
 
-        Ok(Scene { camera, image, render, materials, objects, lights })
+        Ok(Scene { camera, image, render, materials, objects, lights, textures, environment, warnings })
+    }
+
+    /// Textures that cannot show: on objects that are not meshes, or meshes without texture
+    /// coordinates.
+    fn texture_warnings(&self, objects: &[Object], materials: &[Material], warnings: &mut Vec<String>) {
+        for (i, o) in objects.iter().enumerate() {
+            let m = &materials[o.material as usize];
+            if m.color_texture.is_none() && m.radiance_texture.is_none() {
+                continue;
+            }
+            match &o.geometry {
+                Geometry::Mesh { uvs, materials: per_triangle, .. } if uvs.is_empty() && per_triangle.is_empty() => {
+                    warnings.push(format!(
+                        "{}: objects[{i}]: material \"{}\" has a texture but the mesh has no texture coordinates (vt): \
+                         it reads the texel at (0, 0)",
+                        self.path.display(),
+                        m.name
+                    ))
+                }
+                Geometry::Mesh { .. } => {}
+                g => warnings.push(format!(
+                    "{}: objects[{i}]: material \"{}\" has a texture, which only meshes show (this is a {})",
+                    self.path.display(),
+                    m.name,
+                    g.kind().name()
+                )),
+            }
+        }
+    }
+
+    /// `[environment]`: exactly one of `radiance` and `file`.
+    fn environment(&self, e: &Spanned<EnvironmentDef>, warnings: &mut Vec<String>) -> Res<Environment> {
+        let d = e.get_ref();
+        let mut env = match (&d.radiance, &d.file) {
+            (Some(r), None) => Environment::constant(self.rgb(r, "environment.radiance", None)?),
+            (None, Some(f)) => {
+                if f.get_ref().is_empty() {
+                    return Err(self.at(f.span(), "environment.file", "must not be empty"));
+                }
+                let path = self.base_dir.join(f.get_ref());
+                let mut map = Texture::load(&path, ImageKind::Radiance)
+                    .map_err(|m| self.at(f.span(), "environment.file", format!("{}: {m}", path.display())))?;
+                while map.width as u64 * map.height as u64 > MAX_ENVIRONMENT_TEXELS {
+                    let (w, h) = (map.width, map.height);
+                    map = map.halved();
+                    warnings.push(format!(
+                        "{}: environment.file: {}: {w} x {h} texels halved to {} x {} (at most {MAX_ENVIRONMENT_TEXELS} \
+                         texels are rendered)",
+                        self.path.display(),
+                        path.display(),
+                        map.width,
+                        map.height
+                    ));
+                }
+                map.wrap = [texture::Wrap::Repeat, texture::Wrap::Clamp];
+                Environment { map: Some(map), ..Environment::constant([1.0; 3]) }
+            }
+            (Some(_), Some(f)) => {
+                return Err(self.at(f.span(), "environment.file", "give either radiance or file, not both"));
+            }
+            (None, None) => {
+                return Err(self.at(e.span(), "environment", "needs radiance = [r, g, b] or file = \"map.exr\""));
+            }
+        };
+        if let Some(s) = &d.strength {
+            env.strength = self.number(s, "environment.strength")?;
+            if env.strength < 0.0 {
+                return Err(self.at(s.span(), "environment.strength", format!("must be >= 0, got {}", env.strength)));
+            }
+        }
+        if let Some(r) = &d.rotation {
+            env.rotation_deg = self.number(r, "environment.rotation")?;
+        }
+        Ok(env)
+    }
+
+    /// The image file `name` (relative to the scene's folder) as a colour texture: its index
+    /// in `textures`, each file decoded once.
+    fn color_texture(
+        &self,
+        name: &Spanned<String>,
+        field: &str,
+        textures: &mut Vec<Texture>,
+        files: &mut HashMap<std::path::PathBuf, u32>,
+    ) -> Res<u32> {
+        if name.get_ref().is_empty() {
+            return Err(self.at(name.span(), field, "must not be empty"));
+        }
+        let path = self.base_dir.join(name.get_ref());
+        if let Some(&k) = files.get(&path) {
+            return Ok(k);
+        }
+        if textures.len() >= texture::MAX_TEXTURES {
+            return Err(self.at(name.span(), field, format!("more than {} textures", texture::MAX_TEXTURES)));
+        }
+        let t = Texture::load(&path, ImageKind::Color)
+            .map_err(|m| self.at(name.span(), field, format!("{}: {m}", path.display())))?;
+        let k = textures.len() as u32;
+        textures.push(t);
+        files.insert(path, k);
+        Ok(k)
+    }
+
+    /// `[[objects]] type = "gltf"`: the file's triangles with their materials (appended to
+    /// `loaded.materials`, their textures to `loaded.textures`) and its punctual lights, placed
+    /// by the object's transform. Its cameras are not used (the scene file has its own).
+    fn gltf_object(
+        &self,
+        o: &Spanned<ObjectDef>,
+        field: &str,
+        triangle_budget: usize,
+        loaded: &mut GltfLoaded,
+    ) -> Res<(Geometry, u32)> {
+        let d = o.get_ref();
+        let allowed = OBJECT_TYPES.iter().find(|(t, _)| *t == "gltf").expect("gltf is an object type").1;
+        for (key, span) in d.present() {
+            if !allowed.contains(&key) {
+                let hint = if key == "material" { " (a glTF file brings its own materials)" } else { "" };
+                return Err(self.at(
+                    span,
+                    format!("{field}.{key}"),
+                    format!("not a field of a gltf (its fields: type, {}){hint}", allowed.join(", ")),
+                ));
+            }
+        }
+        let Some(file) = &d.file else {
+            return Err(self.at(o.span(), format!("{field}.file"), "missing (a gltf needs file)"));
+        };
+        if file.get_ref().is_empty() {
+            return Err(self.at(file.span(), format!("{field}.file"), "must not be empty"));
+        }
+        let t = self.placement(d, field)?;
+        let path = self.base_dir.join(file.get_ref());
+        let mesh_error = |mut message: String| {
+            if triangle_budget < mesh::MAX_MESH_TRIANGLES && message.starts_with("more than") {
+                message += &format!(" (a scene holds at most {MAX_SCENE_TRIANGLES} triangles in all)");
+            }
+            let (line, column) = self.line_col(file.span().start);
+            SceneError::Mesh {
+                path: self.path.to_path_buf(),
+                line,
+                column,
+                field: format!("{field}.file"),
+                mesh: path.clone(),
+                message,
+            }
+        };
+        let imp = super::gltf::import(&path, &t, triangle_budget.min(mesh::MAX_MESH_TRIANGLES)).map_err(mesh_error)?;
+        if loaded.textures.len() + imp.textures.len() > texture::MAX_TEXTURES {
+            return Err(mesh_error(format!("more than {} textures in the scene", texture::MAX_TEXTURES)));
+        }
+        let (m0, t0) = (loaded.materials.len() as u32, loaded.textures.len() as u32);
+        let stem = path.file_name().map_or_else(|| path.display().to_string(), |f| f.to_string_lossy().into_owned());
+        for mut m in imp.materials {
+            m.name = format!("{stem}: {}", m.name);
+            m.color_texture = m.color_texture.map(|k| k + t0);
+            m.radiance_texture = m.radiance_texture.map(|k| k + t0);
+            loaded.materials.push(m);
+        }
+        loaded.textures.extend(imp.textures);
+        loaded.lights.extend(imp.lights);
+        loaded
+            .warnings
+            .extend(imp.warnings.into_iter().map(|w| format!("{}: {field}: {stem}: {w}", self.path.display())));
+        let materials: Vec<u32> = imp.triangle_materials.iter().map(|&m| m + m0).collect();
+        let material = materials.first().copied().unwrap_or(m0);
+        Ok((Geometry::Mesh { file: path, triangles: imp.triangles, uvs: imp.uvs, materials }, material))
+    }
+
+    /// A mesh's or glTF object's `translate`, `rotate`, `scale`.
+    fn placement(&self, d: &ObjectDef, field: &str) -> Res<Transform> {
+        let mut t = Transform::default();
+        if let Some(v) = &d.translate {
+            t.translate = self.vec3(v, &format!("{field}.translate"))?.to_array();
+        }
+        if let Some(v) = &d.rotate {
+            t.rotate_deg = self.vec3(v, &format!("{field}.rotate"))?.to_array();
+        }
+        if let Some(s) = &d.scale {
+            t.scale = self.scale(s, &format!("{field}.scale"))?;
+        }
+        Ok(t)
+    }
+
+    /// `[render] ambient` when the file gives none: with an environment, none (it lights
+    /// Whitted's diffuse surfaces itself).
+    fn default_ambient(environment: bool) -> [f64; 3] {
+        if environment { [0.0; 3] } else { RenderSettings::default().ambient }
     }
 
     fn image(&self, im: &Spanned<ImageDef>) -> Res<ImageSize> {
@@ -631,8 +878,10 @@ impl Cx<'_> {
         Ok(Camera { eye, look_at, up, fov_y })
     }
 
-    fn render(&self, r: &RenderDef) -> Res<RenderSettings> {
-        let mut s = RenderSettings::default();
+    /// `[render]`; with an `[environment]` (`environment`), `background` is the environment and
+    /// `ambient` defaults to none.
+    fn render(&self, r: &RenderDef, environment: bool) -> Res<RenderSettings> {
+        let mut s = RenderSettings { ambient: Self::default_ambient(environment), ..RenderSettings::default() };
         if let Some(v) = &r.mode {
             let name = v.get_ref().as_str();
             s.mode = RenderMode::ALL.into_iter().find(|m| m.name() == name).ok_or_else(|| {
@@ -653,6 +902,13 @@ impl Cx<'_> {
             s.spp = self.int_in(v, "render.spp", 1, MAX_SPP)? as u32;
         }
         if let Some(v) = &r.background {
+            if environment {
+                return Err(self.at(
+                    v.span(),
+                    "render.background",
+                    "not used with [environment]: the environment is what rays that leave the scene see",
+                ));
+            }
             s.background = self.rgb(v, "render.background", None)?;
         }
         if let Some(v) = &r.ambient {
@@ -661,7 +917,13 @@ impl Cx<'_> {
         Ok(s)
     }
 
-    fn material(&self, m: &Spanned<MaterialDef>, field: &str) -> Res<Material> {
+    fn material(
+        &self,
+        m: &Spanned<MaterialDef>,
+        field: &str,
+        textures: &mut Vec<Texture>,
+        files: &mut HashMap<std::path::PathBuf, u32>,
+    ) -> Res<Material> {
         let d = m.get_ref();
         let name = d.name.get_ref();
         if name.is_empty() {
@@ -701,6 +963,19 @@ impl Cx<'_> {
         {
             return Err(not_a_field("roughness", r.span()));
         }
+        if kind != MaterialKind::Emissive
+            && let Some(r) = &d.radiance_texture
+        {
+            return Err(not_a_field("radiance_texture", r.span()));
+        }
+        let color_texture = match &d.texture {
+            Some(t) => Some(self.color_texture(t, &format!("{field}.texture"), textures, files)?),
+            None => None,
+        };
+        let radiance_texture = match &d.radiance_texture {
+            Some(t) => Some(self.color_texture(t, &format!("{field}.radiance_texture"), textures, files)?),
+            None => None,
+        };
         // An emissive surface reflects like a diffuse one of albedo `color`: black by default,
         // a pure light.
         let default_color = match kind {
@@ -750,7 +1025,17 @@ impl Cx<'_> {
             }
         }
         let two_sided = d.two_sided.as_ref().is_some_and(|v| *v.get_ref());
-        Ok(Material { name: name.clone(), kind, color, ior, radiance, roughness, two_sided })
+        Ok(Material {
+            name: name.clone(),
+            kind,
+            color,
+            ior,
+            radiance,
+            roughness,
+            two_sided,
+            color_texture,
+            radiance_texture,
+        })
     }
 
     fn light(&self, l: &Spanned<LightDef>, field: &str) -> Res<Light> {
@@ -911,32 +1196,24 @@ impl Cx<'_> {
                 if file.get_ref().is_empty() {
                     return Err(self.at(file.span(), f("file"), "must not be empty"));
                 }
-                let mut t = Transform::default();
-                if let Some(v) = &d.translate {
-                    t.translate = self.vec3(v, &f("translate"))?.to_array();
-                }
-                if let Some(v) = &d.rotate {
-                    t.rotate_deg = self.vec3(v, &f("rotate"))?.to_array();
-                }
-                if let Some(s) = &d.scale {
-                    t.scale = self.scale(s, &f("scale"))?;
-                }
+                let t = self.placement(d, field)?;
                 let mesh_path = self.base_dir.join(file.get_ref());
-                let triangles = mesh::load_obj(&mesh_path, &t, triangle_budget).map_err(|mut message| {
-                    if triangle_budget < mesh::MAX_MESH_TRIANGLES {
-                        message += &format!(" (a scene holds at most {MAX_SCENE_TRIANGLES} triangles in all)");
-                    }
-                    let (line, column) = self.line_col(file.span().start);
-                    SceneError::Mesh {
-                        path: self.path.to_path_buf(),
-                        line,
-                        column,
-                        field: f("file"),
-                        mesh: mesh_path.clone(),
-                        message,
-                    }
-                })?;
-                Ok(Geometry::Mesh { file: mesh_path, triangles })
+                let (triangles, uvs) =
+                    mesh::load_obj_with_uvs(&mesh_path, &t, triangle_budget).map_err(|mut message| {
+                        if triangle_budget < mesh::MAX_MESH_TRIANGLES {
+                            message += &format!(" (a scene holds at most {MAX_SCENE_TRIANGLES} triangles in all)");
+                        }
+                        let (line, column) = self.line_col(file.span().start);
+                        SceneError::Mesh {
+                            path: self.path.to_path_buf(),
+                            line,
+                            column,
+                            field: f("file"),
+                            mesh: mesh_path.clone(),
+                            message,
+                        }
+                    })?;
+                Ok(Geometry::Mesh { file: mesh_path, triangles, uvs, materials: Vec::new() })
             }
             _ => unreachable!("object types are checked above"),
         }
@@ -1096,7 +1373,7 @@ mod tests {
             parse(&src, Path::new("t.toml"), dir.path())
         };
         let s = go("2").unwrap();
-        let Geometry::Mesh { triangles, file } = &s.objects[0].geometry else { panic!() };
+        let Geometry::Mesh { triangles, file, .. } = &s.objects[0].geometry else { panic!() };
         assert_eq!(triangles[0].v[1], V3::new(2.0, 0.0, 0.0));
         assert_eq!(file, &dir.path().join("t.obj"));
         let s = go("[1, 3, 1.5]").unwrap();

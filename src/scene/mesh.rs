@@ -76,6 +76,16 @@ fn face_triangles(text: &str, limit: usize) -> usize {
 /// before the file is parsed. A mirroring transform (negative scale product) swaps each
 /// triangle's last two vertices so front faces stay front faces.
 pub fn load_obj(path: &Path, transform: &Transform, limit: usize) -> Result<Vec<Triangle<f64>>, String> {
+    load_obj_with_uvs(path, transform, limit).map(|(t, _)| t)
+}
+
+/// Triangles and the texture coordinates of their vertices (empty when there are none).
+pub type TexturedTriangles = (Vec<Triangle<f64>>, Vec<[[f32; 2]; 3]>);
+
+/// [`load_obj`] with the texture coordinates (`vt`) of each triangle's vertices, in the order
+/// of its vertices, flipped to strahl's convention (v = 0 is the top row of an image; OBJ's
+/// v = 0 is the bottom row). Empty when the file has no `vt` for some face.
+pub fn load_obj_with_uvs(path: &Path, transform: &Transform, limit: usize) -> Result<TexturedTriangles, String> {
     let limit = limit.min(MAX_MESH_TRIANGLES);
     let text = crate::input::read_text(path, MAX_MESH_FILE_BYTES).map_err(|e| match e {
         crate::input::ReadError::Io(e) => format!("cannot open: {e}"),
@@ -121,7 +131,10 @@ pub fn load_obj(path: &Path, transform: &Transform, limit: usize) -> Result<Vec<
     }
 
     let mirror = transform.mirrors();
+    // Texture coordinates only when every face has them.
+    let with_uvs = models.iter().all(|m| m.mesh.texcoord_indices.len() == m.mesh.indices.len());
     let mut tris = Vec::with_capacity(count);
+    let mut uvs = Vec::with_capacity(if with_uvs { count } else { 0 });
     for m in &models {
         let pos = &m.mesh.positions;
         let nverts = pos.len() / 3;
@@ -137,20 +150,39 @@ pub fn load_obj(path: &Path, transform: &Transform, limit: usize) -> Result<Vec<
             }
             placed.push(q);
         }
-        for f in m.mesh.indices.chunks_exact(3) {
+        let tc = &m.mesh.texcoords;
+        for (k, f) in m.mesh.indices.chunks_exact(3).enumerate() {
             let mut v = [V3::zero(); 3];
-            for (k, &ix) in f.iter().enumerate() {
-                v[k] = *placed
+            for (j, &ix) in f.iter().enumerate() {
+                v[j] = *placed
                     .get(ix as usize)
                     .ok_or_else(|| format!("face vertex index {} out of range (1..={nverts})", ix as u64 + 1))?;
             }
+            let mut uv = [[0.0f32; 2]; 3];
+            if with_uvs {
+                for (j, &ix) in m.mesh.texcoord_indices[3 * k..3 * k + 3].iter().enumerate() {
+                    let ix = ix as usize;
+                    if 2 * ix + 1 >= tc.len() {
+                        return Err(format!("face texture index {} out of range (1..={})", ix + 1, tc.len() / 2));
+                    }
+                    let (u, w) = (tc[2 * ix], tc[2 * ix + 1]);
+                    if !(u.is_finite() && w.is_finite()) {
+                        return Err(format!("texture coordinate {} is not finite", ix + 1));
+                    }
+                    uv[j] = [u, 1.0 - w];
+                }
+            }
             if mirror {
                 v.swap(1, 2);
+                uv.swap(1, 2);
             }
             tris.push(Triangle { v });
+            if with_uvs {
+                uvs.push(uv);
+            }
         }
     }
-    Ok(tris)
+    Ok((tris, uvs))
 }
 
 /// The seed scene's bumpy torus, mirroring `torus_mesh()` of the Mitsuba anchor script:
@@ -277,6 +309,24 @@ mod tests {
         // Quads are split into two triangles.
         std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n").unwrap();
         assert_eq!(load_obj(&path, &Transform::default(), MAX_MESH_TRIANGLES).unwrap().len(), 2);
+    }
+
+    /// `vt` coordinates follow their vertices, flipped so v = 0 is an image's top row; a
+    /// mirroring placement swaps them with the vertices.
+    #[test]
+    fn texture_coordinates_follow_their_vertices() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("uv.obj");
+        std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 0.25\nf 1/1 2/2 3/3\n").unwrap();
+        let (_, uvs) = load_obj_with_uvs(&path, &Transform::default(), MAX_MESH_TRIANGLES).unwrap();
+        assert_eq!(uvs, vec![[[0.0, 1.0], [1.0, 1.0], [0.0, 0.75]]]);
+        let t = Transform { scale: [-1.0, 1.0, 1.0], ..Default::default() };
+        let (tris, uvs) = load_obj_with_uvs(&path, &t, MAX_MESH_TRIANGLES).unwrap();
+        assert_eq!(tris[0].v[1], V3::new(0.0, 1.0, 0.0));
+        assert_eq!(uvs, vec![[[0.0, 1.0], [0.0, 0.75], [1.0, 1.0]]]);
+        // Without vt on every face: none.
+        std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        assert!(load_obj_with_uvs(&path, &Transform::default(), MAX_MESH_TRIANGLES).unwrap().1.is_empty());
     }
 
     #[test]

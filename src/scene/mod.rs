@@ -3,13 +3,18 @@
 //! Data flows one way: scene file ([`file`]) → [`Scene`] → flat primitive arrays
 //! ([`crate::primitives`]) → BVH ([`crate::accel`]) → a backend → image.
 
+pub mod environment;
 pub mod error;
 pub mod file;
+pub mod gltf;
 pub mod mesh;
 pub mod polygon;
 pub mod procedural;
+pub mod texture;
 
+pub use environment::{EnvSampling, Environment};
 pub use error::SceneError;
+pub use texture::Texture;
 
 use crate::geometry::{Cylinder, Plane, Sphere, Triangle};
 use crate::math::V3;
@@ -117,6 +122,11 @@ pub struct Material {
     pub roughness: f64,
     /// An emissive surface emits from both faces (else from its front face only).
     pub two_sided: bool,
+    /// Index into [`Scene::textures`] of an image that multiplies `color` where the surface
+    /// has texture coordinates.
+    pub color_texture: Option<u32>,
+    /// Index into [`Scene::textures`] of an image that multiplies `radiance` (emissive).
+    pub radiance_texture: Option<u32>,
 }
 
 impl Material {
@@ -130,6 +140,8 @@ impl Material {
             radiance: [0.0; 3],
             roughness: 0.0,
             two_sided: false,
+            color_texture: None,
+            radiance_texture: None,
         }
     }
 }
@@ -178,10 +190,16 @@ pub enum Geometry {
         vertices: Vec<V3<f64>>,
         triangles: Vec<Triangle<f64>>,
     },
-    /// A triangle mesh loaded from `file`, already transformed.
+    /// A triangle mesh loaded from `file` (OBJ or glTF), already transformed.
     Mesh {
         file: PathBuf,
         triangles: Vec<Triangle<f64>>,
+        /// Texture coordinates of each triangle's vertices, in the order of its vertices;
+        /// empty when the file has none.
+        uvs: Vec<[[f32; 2]; 3]>,
+        /// Material of each triangle (indices into [`Scene::materials`]); empty when every
+        /// triangle has the object's material (glTF files bring one per primitive).
+        materials: Vec<u32>,
     },
 }
 
@@ -213,6 +231,13 @@ pub struct Object {
     pub material: u32,
 }
 
+/// How a glTF file given on its own becomes a scene.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Which of the file's perspective cameras (in `cameras` order; default the first).
+    pub camera: Option<usize>,
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
     pub camera: Camera,
@@ -223,12 +248,28 @@ pub struct Scene {
     /// The file's `[[objects]]` in order: an object's index is its id in trace output.
     pub objects: Vec<Object>,
     pub lights: Vec<Light>,
+    /// Decoded images that materials refer to.
+    pub textures: Vec<Texture>,
+    /// Light from infinitely far away in every direction (`[environment]`): the background
+    /// of rays that leave the scene.
+    pub environment: Option<Environment>,
+    /// What was read but not used (skipped glTF primitives, unsupported extensions...), one
+    /// line each, for the command line to print.
+    pub warnings: Vec<String>,
 }
 
 impl Scene {
-    /// Loads and validates a scene file. Every error names the file, line, column and field.
+    /// Loads and validates a scene file: TOML, or a glTF file (`.gltf`, `.glb`) on its own,
+    /// with its first camera. Every error names the file and where in it (line, column and
+    /// field of a TOML file; the glTF path such as `meshes[2].primitives[0].indices`).
     pub fn load(path: impl Into<PathBuf>) -> Result<Scene, SceneError> {
-        file::load(&path.into())
+        Self::load_with(path, &LoadOptions::default())
+    }
+
+    /// [`Scene::load`] with options for glTF files.
+    pub fn load_with(path: impl Into<PathBuf>, options: &LoadOptions) -> Result<Scene, SceneError> {
+        let path = path.into();
+        if gltf::is_gltf_path(&path) { gltf::load_scene(&path, options) } else { file::load(&path) }
     }
 
     /// Total triangle count over triangles, polygons and meshes.

@@ -53,8 +53,14 @@ fn mesh_scene(triangles: Vec<Triangle<f64>>, file: PathBuf, camera: Camera, imag
         image,
         render: RenderSettings::default(),
         materials: vec![Material::default_grey()],
-        objects: vec![Object { geometry: Geometry::Mesh { file, triangles }, material: 0 }],
+        objects: vec![Object {
+            geometry: Geometry::Mesh { file, triangles, uvs: Vec::new(), materials: Vec::new() },
+            material: 0,
+        }],
         lights: vec![Light::Directional { direction: dir.normalize(), intensity: [1.0; 3] }],
+        textures: Vec::new(),
+        environment: None,
+        warnings: Vec::new(),
     }
 }
 

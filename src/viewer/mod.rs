@@ -281,7 +281,8 @@ impl Viewer {
         f.up = c.up;
         f.max_depth = self.max_depth;
         f.spp = 1;
-        f.flags = self.mode.flags();
+        // The mode's flags, keeping the scene's (FRAME_ENVIRONMENT).
+        f.flags = self.mode.flags() | (f.flags & crate::gpu_types::FRAME_ENVIRONMENT);
         f
     }
 

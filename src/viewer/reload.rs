@@ -50,7 +50,7 @@ pub fn object_label(scene: &Scene, index: usize) -> String {
     let o = &scene.objects[index];
     let material = scene.materials.get(o.material as usize).map_or("?", |m| m.name.as_str());
     let extra = match &o.geometry {
-        Geometry::Mesh { triangles, file } => format!(
+        Geometry::Mesh { triangles, file, .. } => format!(
             " {}, {} triangles",
             file.file_name().map_or_else(|| file.display().to_string(), |f| f.to_string_lossy().into_owned()),
             triangles.len()

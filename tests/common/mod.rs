@@ -33,3 +33,36 @@ pub fn shipped_scenes() -> Vec<PathBuf> {
 /// Deterministic test randomness: the crate's SplitMix64.
 #[allow(unused_imports)] // not every test binary draws random rays
 pub use strahl::rng::SplitMix64 as Rng;
+
+/// The mean of `spp` path-traced samples per pixel of `frame` on the CPU.
+pub fn cpu_path_image(
+    prep: &std::sync::Arc<strahl::render::Prepared>,
+    frame: strahl::gpu_types::GpuFrame,
+    spp: u32,
+) -> strahl::image::Image {
+    let mut p = strahl::backend::cpu::PathAccumulator::new(prep.clone(), frame);
+    p.add_samples(spp);
+    p.image()
+}
+
+/// The mean of `spp` path-traced samples per pixel of `frame` on the GPU.
+pub fn gpu_path_image(
+    ctx: &std::sync::Arc<GpuContext>,
+    prep: &strahl::render::Prepared,
+    frame: strahl::gpu_types::GpuFrame,
+    spp: u32,
+) -> strahl::image::Image {
+    let buffers = strahl::backend::gpu::SceneBuffers::upload(ctx, &prep.gpu).unwrap();
+    let mut p = strahl::backend::gpu::render::PathAccumulator::new(ctx.clone(), buffers, frame).unwrap();
+    p.add_samples(spp).unwrap();
+    p.image().unwrap()
+}
+
+/// Mean over the given pixels (channels averaged) and its standard error from their spread
+/// (pixels are independent estimates).
+pub fn mean_and_error(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
+    (mean, (var / n).sqrt())
+}

@@ -39,12 +39,13 @@ pub enum GpuError {
     Wgpu(String),
 }
 
-/// Storage buffers a stage binds: the scene's 11 and the trace program's 3 (the wavefront path
+/// Storage buffers a stage binds: the scene's 16 and the trace program's 3 (the wavefront path
 /// tracer needs [`wavefront::BINDINGS`] more than the scene's; see
 /// [`GpuContext::has_wavefront`]).
 const MIN_STORAGE_BUFFERS: u32 = SCENE_BINDINGS + 3;
-/// Bindings of group 0: the frame and the scene's buffers.
-const SCENE_BINDINGS: u32 = 11;
+/// Bindings of group 0 (`shaders/modules/bindings.wgsl`): the frame and the scene's buffers, those of
+/// textures and the environment included.
+pub const SCENE_BINDINGS: u32 = 16;
 
 /// How path tracing runs on a device: one kernel per sample pass that follows each path to its
 /// end (`path.wgsl`), or separate kernels over queues of paths (`wavefront.wgsl`, see
@@ -381,6 +382,11 @@ impl SceneBuffers {
             pod_array("lights", &g.lights),
             pod_array("emitters", &g.emitters),
             pod_array("leaf-order triangles", &g.leaf_triangles),
+            pod_array("texture table", &g.textures),
+            pod_array("texels (every image of the scene: textures and environment map)", &g.texels),
+            pod_array("triangle texture coordinates", &g.triangle_uvs),
+            pod_array("environment", &g.environment),
+            pod_array("environment map distribution", &g.env_distribution),
         ];
         for a in &arrays {
             ctx.check_binding_size(a.what, a.bytes.len() as u64)?;

@@ -7,7 +7,7 @@ use naga_oil::compose::{
 };
 use std::collections::HashMap;
 
-use crate::gpu_types::{GpuScene, LIGHT_DIRECTIONAL, LIGHT_POINT};
+use crate::gpu_types::{ENV_MAP, GpuScene, LIGHT_DIRECTIONAL, LIGHT_POINT};
 use crate::scene::MaterialKind;
 
 /// The shared modules, in import order (each may import only those before it).
@@ -22,6 +22,8 @@ pub const MODULES: &[(&str, &str)] = &[
     ("shaders/modules/traverse.wgsl", include_str!("../../../shaders/modules/traverse.wgsl")),
     ("shaders/modules/spawn.wgsl", include_str!("../../../shaders/modules/spawn.wgsl")),
     ("shaders/modules/raygen.wgsl", include_str!("../../../shaders/modules/raygen.wgsl")),
+    ("shaders/modules/texture.wgsl", include_str!("../../../shaders/modules/texture.wgsl")),
+    ("shaders/modules/environment.wgsl", include_str!("../../../shaders/modules/environment.wgsl")),
     ("shaders/modules/shade.wgsl", include_str!("../../../shaders/modules/shade.wgsl")),
     ("shaders/modules/sampler.wgsl", include_str!("../../../shaders/modules/sampler.wgsl")),
     ("shaders/modules/bsdf.wgsl", include_str!("../../../shaders/modules/bsdf.wgsl")),
@@ -76,8 +78,14 @@ impl FeatureKey {
     /// The device reads 64-bit words (`SHADER_INT64`): a flag of the device, not of the scene,
     /// which [`GpuContext::pipeline`](super::GpuContext::pipeline) adds.
     pub const LOAD64: u32 = 1 << 10;
-    pub const FLAG_COUNT: u32 = 11;
-    pub const NAMES: [&'static str; 11] = [
+    /// Materials have image textures (texture coordinates, texels).
+    pub const TEXTURES: u32 = 1 << 11;
+    /// The scene has an `[environment]`.
+    pub const ENVIRONMENT: u32 = 1 << 12;
+    /// The environment is a map (implies ENVIRONMENT).
+    pub const ENV_MAP: u32 = 1 << 13;
+    pub const FLAG_COUNT: u32 = 14;
+    pub const NAMES: [&'static str; 14] = [
         "SPHERES",
         "CYLINDERS",
         "TRIANGLES",
@@ -89,12 +97,18 @@ impl FeatureKey {
         "DIELECTRIC",
         "EMISSIVE",
         "LOAD64",
+        "TEXTURES",
+        "ENVIRONMENT",
+        "ENV_MAP",
     ];
     /// Flags that describe the device rather than the scene.
     pub const DEVICE: u32 = Self::LOAD64;
     /// Flags that change the trace program (it has no shading code).
     pub const GEOMETRY: u32 =
         Self::SPHERES | Self::CYLINDERS | Self::TRIANGLES | Self::PLANES | Self::BVH | Self::DEVICE;
+    /// Flags of the textures and the environment, which only the shading programs (render,
+    /// path) read.
+    pub const ASSETS: u32 = Self::TEXTURES | Self::ENVIRONMENT | Self::ENV_MAP;
     /// Every scene feature: the one shader that renders any scene.
     pub const ALL: FeatureKey = FeatureKey(((1 << Self::FLAG_COUNT) - 1) & !Self::DEVICE);
 
@@ -119,6 +133,9 @@ impl FeatureKey {
         set(has(MaterialKind::Mirror), Self::MIRROR);
         set(has(MaterialKind::Dielectric), Self::DIELECTRIC);
         set(has(MaterialKind::Emissive), Self::EMISSIVE);
+        set(g.materials.iter().any(|m| m.color_texture != 0 || m.radiance_texture != 0), Self::TEXTURES);
+        set(!g.environment.is_empty(), Self::ENVIRONMENT);
+        set(g.environment.iter().any(|e| e.flags & ENV_MAP != 0), Self::ENV_MAP);
         FeatureKey(k)
     }
 
@@ -144,6 +161,13 @@ impl FeatureKey {
         }
         if self.has(Self::DIELECTRIC | Self::EMISSIVE) {
             defs.insert("SHADOW_CROSSING".into(), ShaderDefValue::Bool(true));
+        }
+        if self.has(Self::ENV_MAP) {
+            defs.insert("ENVIRONMENT".into(), ShaderDefValue::Bool(true));
+        }
+        // The texture table and texels are bound for textures and for an environment map.
+        if self.has(Self::TEXTURES | Self::ENV_MAP) {
+            defs.insert("TEXELS".into(), ShaderDefValue::Bool(true));
         }
         defs
     }
@@ -244,10 +268,38 @@ pub fn to_wgsl(module: &naga::Module, info: &naga::valid::ModuleInfo) -> String 
 mod tests {
     use super::*;
 
+    /// Every key of the flags before [`FeatureKey::ASSETS`] (all programs), and the five valid
+    /// combinations of the asset flags over the flags whose code the asset code meets
+    /// (spheres and triangles: emitter sampling and texture lookups; BVH; point lights: the
+    /// path tracer's light loop; emissive and dielectric: emitters and shadow crossing), for
+    /// the shading programs that read them: 2048 + 5 × 64 keys instead of 2^14 (the other
+    /// flags only change traversal and BSDF code, which the asset code does not touch).
+    fn keys_to_validate() -> Vec<u32> {
+        let base = FeatureKey::ASSETS.trailing_zeros();
+        let mut keys: Vec<u32> = (0..(1u32 << base)).collect();
+        let met = FeatureKey::SPHERES
+            | FeatureKey::TRIANGLES
+            | FeatureKey::BVH
+            | FeatureKey::POINT_LIGHTS
+            | FeatureKey::EMISSIVE
+            | FeatureKey::DIELECTRIC;
+        let skip = !met & ((1 << base) - 1);
+        for assets in [
+            FeatureKey::TEXTURES,
+            FeatureKey::ENVIRONMENT,
+            FeatureKey::ENVIRONMENT | FeatureKey::ENV_MAP,
+            FeatureKey::TEXTURES | FeatureKey::ENVIRONMENT,
+            FeatureKey::ALL.0 & FeatureKey::ASSETS,
+        ] {
+            keys.extend((0..(1u32 << base)).filter(|k| k & skip == 0).map(|k| k | assets));
+        }
+        keys
+    }
+
     #[test]
     fn every_feature_key_composes_and_validates() {
         use rayon::prelude::*;
-        let failures: Vec<String> = (0..(1u32 << FeatureKey::FLAG_COUNT))
+        let failures: Vec<String> = keys_to_validate()
             .into_par_iter()
             .flat_map_iter(|bits| {
                 let key = FeatureKey(bits);
@@ -285,13 +337,27 @@ mod tests {
             "Node",
             "slab",
             "nodes",
+            "texture_sample",
+            "texels",
+            "triangle_uvs",
+            "env_background",
+            "env_distribution",
+            "Environment",
         ];
         for absent in absent_items {
             assert!(!text.contains(absent), "{absent} found in the sphere-only shader");
         }
         let all = compose(Program::Render, FeatureKey::ALL).unwrap();
         let all_text = to_wgsl(&all, &validate(Program::Render, FeatureKey::ALL, &all).unwrap());
-        for present in ["cylinder_roots", "triangle_intersect", "plane_roots", "fresnel_dielectric", "slab"] {
+        for present in [
+            "cylinder_roots",
+            "triangle_intersect",
+            "plane_roots",
+            "fresnel_dielectric",
+            "slab",
+            "texture_sample",
+            "env_background",
+        ] {
             assert!(all_text.contains(present), "{present} missing from the all-features shader");
         }
         assert!(text.len() * 2 < all_text.len(), "{} vs {} bytes", text.len(), all_text.len());
@@ -403,7 +469,18 @@ mod tests {
             layout!("Triangle", GpuTriangle, [va, object, vb, prim, vc, material]),
             layout!("Node", GpuNode, [lo_a, link_a, hi_a, link_b, lo_b, _pad_a, hi_b, _pad_b]),
             layout!("LeafTriangle", GpuLeafTriangle, [va, index, vb, material, vc, _pad]),
-            layout!("Material", GpuMaterial, [color, kind, radiance, ior, roughness, flags, _pad]),
+            layout!(
+                "Material",
+                GpuMaterial,
+                [color, kind, radiance, ior, roughness, flags, color_texture, radiance_texture]
+            ),
+            layout!("TextureInfo", GpuTexture, [width, height, offset, flags]),
+            layout!("TriangleUv", GpuTriangleUv, [a, b, c]),
+            layout!(
+                "Environment",
+                GpuEnvironment,
+                [radiance, flags, rot_cos, rot_sin, texture, select_prob, width, height, _pad, sh]
+            ),
             layout!("Light", GpuLight, [vector, kind, intensity, flags]),
             layout!("Emitter", GpuEmitter, [prim, kind, cdf, pdf]),
             layout!("QueryRay", GpuQueryRay, [origin, tmin, dir, tmax]),
@@ -462,6 +539,9 @@ mod tests {
             "Emitter" => "GpuEmitter",
             "QueryRay" => "GpuQueryRay",
             "QueryHit" => "GpuQueryHit",
+            "TextureInfo" => "GpuTexture",
+            "TriangleUv" => "GpuTriangleUv",
+            "Environment" => "GpuEnvironment",
             _ => panic!("no Rust twin named for WGSL struct {name}"),
         }
     }

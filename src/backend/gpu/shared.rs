@@ -45,6 +45,7 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
     use crate::primitives::{PrimKind, PrimRef};
     use crate::render::{bsdf, path, sampler, shade, spawn};
     use crate::scene::MaterialKind;
+    use crate::scene::texture::Wrap;
     use Shared::{F32, U32};
     vec![
         // Primitive references (primitives::PrimRef) and the parts of a surface.
@@ -69,8 +70,20 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("VIEW_NORMALS", U32(g::VIEW_NORMALS)),
         ("VIEW_DEPTH", U32(g::VIEW_DEPTH)),
         ("VIEW_COST", U32(g::VIEW_COST)),
+        ("FRAME_ENVIRONMENT", U32(g::FRAME_ENVIRONMENT)),
         ("QUERY_FOUND", U32(g::QUERY_FOUND)),
         ("QUERY_ENTER", U32(g::QUERY_ENTER)),
+        // Textures and the environment (gpu_types, scene::texture::Wrap). The environment's flags
+        // are not called ENV_MAP: that name is a feature's shader def.
+        ("TEXTURE_WRAP_U_SHIFT", U32(g::TEXTURE_WRAP_U_SHIFT)),
+        ("TEXTURE_WRAP_V_SHIFT", U32(g::TEXTURE_WRAP_V_SHIFT)),
+        ("TEXTURE_NEAREST", U32(g::TEXTURE_NEAREST)),
+        ("TEXTURE_LINEAR_RGB", U32(g::TEXTURE_LINEAR_RGB)),
+        ("WRAP_REPEAT", U32(Wrap::Repeat as u32)),
+        ("WRAP_CLAMP", U32(Wrap::Clamp as u32)),
+        ("WRAP_MIRROR", U32(Wrap::Mirror as u32)),
+        ("ENV_FLAG_MAP", U32(g::ENV_MAP)),
+        ("ENV_FLAG_UNIFORM", U32(g::ENV_UNIFORM)),
         // The GPU BVH layout (accel::gpu_bvh) and its traversal stack.
         ("LINK_LEAF", U32(bvh::LINK_LEAF)),
         ("LINK_SHAPES", U32(bvh::LINK_SHAPES)),

@@ -101,7 +101,7 @@ impl Wavefront {
         if !ctx.has_wavefront() {
             return Err(GpuError::Device(format!(
                 "the wavefront path tracer needs {} storage buffers per shader stage, this device offers {}",
-                11 + BINDINGS,
+                super::SCENE_BINDINGS + BINDINGS,
                 ctx.limits.max_storage_buffers_per_shader_stage
             )));
         }

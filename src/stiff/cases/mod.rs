@@ -66,6 +66,9 @@ fn upload(ctx: &GpuContext, prims: &Primitives<f32>) -> Result<SceneBuffers, Gpu
         materials: vec![Material::default_grey()],
         objects: Vec::new(),
         lights: Vec::new(),
+        textures: Vec::new(),
+        environment: None,
+        warnings: Vec::new(),
     };
     SceneBuffers::upload(ctx, &GpuScene::new(&scene, prims, &Bvh::build(prims)))
 }

@@ -90,9 +90,12 @@ pub fn scaled(scene: &Scene, s: f64) -> Scene {
                 vertices: vertices.iter().map(|&v| v * s).collect(),
                 triangles: triangles.iter().map(tri).collect(),
             },
-            Geometry::Mesh { file, triangles } => {
-                Geometry::Mesh { file: file.clone(), triangles: triangles.iter().map(tri).collect() }
-            }
+            Geometry::Mesh { file, triangles, uvs, materials } => Geometry::Mesh {
+                file: file.clone(),
+                triangles: triangles.iter().map(tri).collect(),
+                uvs: uvs.clone(),
+                materials: materials.clone(),
+            },
         };
     }
     for l in &mut out.lights {
