@@ -1,15 +1,13 @@
 //! The buffers the GPU reads, as `#[repr(C)]` + [`bytemuck::Pod`] structs whose layout equals
 //! the WGSL structs in `shaders/modules/types.wgsl` (a test checks every size and offset through
 //! naga's layouter). The CPU renderer reads the same structs, so both backends shade from
-//! identical f32 data.
+//! identical f32 data. The scene is flattened into them by [`crate::render::flatten`].
 //!
 //! WGSL's `vec3<f32>` is 16-byte aligned with size 12: every `[f32; 3]` here is followed by a
 //! 4-byte field that fills the rest of its 16 bytes.
 
-use crate::accel::Bvh;
-use crate::accel::gpu_bvh::{GpuBvh, GpuLeafTriangle, GpuNode};
-use crate::primitives::{Primitives, Tagged};
-use crate::scene::{Light, MaterialKind, Scene};
+use crate::accel::gpu_bvh::{GpuLeafTriangle, GpuNode};
+use crate::scene::MaterialKind;
 use bytemuck::{Pod, Zeroable};
 
 #[repr(C)]
@@ -71,7 +69,7 @@ pub struct GpuMaterial {
     pub roughness: f32,
     /// [`MATERIAL_TWO_SIDED`].
     pub flags: u32,
-    /// 1 + the index in [`GpuScene::textures`] of the image that multiplies `color`; 0 for none.
+    /// 1 + the index in [`FlatScene::textures`] of the image that multiplies `color`; 0 for none.
     pub color_texture: u32,
     /// 1 + the index of the image that multiplies `radiance`; 0 for none.
     pub radiance_texture: u32,
@@ -128,7 +126,7 @@ pub struct GpuEmitter {
     pub pdf: f32,
 }
 
-/// One image in [`GpuScene::texels`], 16 bytes (`TextureInfo` in `shaders/modules/types.wgsl`).
+/// One image in [`FlatScene::texels`], 16 bytes (`TextureInfo` in `shaders/modules/types.wgsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuTexture {
@@ -174,13 +172,13 @@ pub struct GpuEnvironment {
     /// cos and sin of the rotation about +y.
     pub rot_cos: f32,
     pub rot_sin: f32,
-    /// Index in [`GpuScene::textures`] of the map.
+    /// Index in [`FlatScene::textures`] of the map.
     pub texture: u32,
     /// Probability that next-event estimation samples the environment rather than an area
     /// emitter (1 without area emitters).
     pub select_prob: f32,
     /// Size of the sampling distribution (the map's texels) in
-    /// [`GpuScene::env_distribution`].
+    /// [`FlatScene::env_distribution`].
     pub width: u32,
     pub height: u32,
     pub _pad: [u32; 2],
@@ -199,7 +197,7 @@ pub const ENV_UNIFORM: u32 = 2;
 /// read-only storage buffer, see `shaders/modules/bindings.wgsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuFrame {
+pub struct FrameParams {
     pub eye: [f32; 3],
     pub width: u32,
     /// Unit view direction.
@@ -241,10 +239,10 @@ pub struct GpuFrame {
 
 /// Frame flag: the dispatch adds its samples' sum to the output buffer.
 pub const FRAME_ACCUMULATE: u32 = 1;
-/// Frame flag: the scene has an environment ([`GpuScene::environment`]): shader variants
+/// Frame flag: the scene has an environment ([`FlatScene::environment`]): shader variants
 /// compiled with the environment's code read it only then.
 pub const FRAME_ENVIRONMENT: u32 = 2;
-/// Where `shaders/view.wgsl` finds the viewer's debug mode in [`GpuFrame::flags`] (the mode
+/// Where `shaders/view.wgsl` finds the viewer's debug mode in [`FrameParams::flags`] (the mode
 /// shifted left by this), and the modes: the numbers of `ViewMode` in the viewer, shared with
 /// `view.wgsl` and `present.wgsl`.
 pub const VIEW_MODE_SHIFT: u32 = 8;
@@ -256,7 +254,7 @@ pub const VIEW_PATH: u32 = 4;
 
 /// Everything a backend needs, flattened: the layout of the GPU's storage buffers.
 #[derive(Clone, Debug, Default)]
-pub struct GpuScene {
+pub struct FlatScene {
     pub spheres: Vec<GpuSphere>,
     pub cylinders: Vec<GpuCylinder>,
     pub planes: Vec<GpuPlane>,
@@ -272,7 +270,7 @@ pub struct GpuScene {
     pub lights: Vec<GpuLight>,
     /// Path mode's sampled light sources: emissive triangles and spheres.
     pub emitters: Vec<GpuEmitter>,
-    /// 1 / Σ emitter weights ([`GpuFrame::emitter_norm`]) times the probability of choosing
+    /// 1 / Σ emitter weights ([`FrameParams::emitter_norm`]) times the probability of choosing
     /// an area emitter rather than the environment; 0 without emitters.
     pub emitter_norm: f32,
     /// Images ([`crate::render::texture`]), the environment map last.
@@ -288,132 +286,10 @@ pub struct GpuScene {
     pub env_distribution: Vec<f32>,
 }
 
-fn rgb(v: [f64; 3]) -> [f32; 3] {
-    v.map(|c| c as f32)
-}
-
-impl GpuScene {
+impl FlatScene {
     /// Spheres, cylinders and triangles: the primitives the BVH holds.
     pub fn bounded_count(&self) -> usize {
         self.spheres.len() + self.cylinders.len() + self.triangles.len()
-    }
-
-    pub fn new(scene: &Scene, prims: &Primitives<f32>, bvh: &Bvh) -> Self {
-        let tag = |t: &crate::primitives::Tag| (t.object, t.prim, t.material);
-        let mut g = Self {
-            spheres: prims
-                .spheres
-                .iter()
-                .map(|Tagged { shape: s, tag: t }| {
-                    let (object, prim, material) = tag(t);
-                    GpuSphere { center: s.center.to_array(), radius: s.radius, object, prim, material, _pad: 0 }
-                })
-                .collect(),
-            cylinders: prims
-                .cylinders
-                .iter()
-                .map(|Tagged { shape: c, tag: t }| {
-                    let (object, prim, material) = tag(t);
-                    GpuCylinder {
-                        pa: c.p1.to_array(),
-                        radius: c.radius,
-                        pb: c.p2.to_array(),
-                        caps: c.caps as u32,
-                        object,
-                        prim,
-                        material,
-                        _pad: 0,
-                    }
-                })
-                .collect(),
-            planes: prims
-                .planes
-                .iter()
-                .map(|Tagged { shape: p, tag: t }| GpuPlane {
-                    point: p.point.to_array(),
-                    object: t.object,
-                    normal: p.normal.to_array(),
-                    material: t.material,
-                })
-                .collect(),
-            triangles: prims
-                .triangles
-                .iter()
-                .map(|Tagged { shape: tri, tag: t }| GpuTriangle {
-                    va: tri.v[0].to_array(),
-                    object: t.object,
-                    vb: tri.v[1].to_array(),
-                    prim: t.prim,
-                    vc: tri.v[2].to_array(),
-                    material: t.material,
-                })
-                .collect(),
-            nodes: Vec::new(),
-            shape_refs: Vec::new(),
-            leaf_triangles: Vec::new(),
-            materials: scene
-                .materials
-                .iter()
-                .map(|m| GpuMaterial {
-                    color: rgb(m.color),
-                    kind: m.kind as u32,
-                    radiance: rgb(m.radiance),
-                    ior: m.ior as f32,
-                    roughness: m.roughness as f32,
-                    flags: if m.two_sided { MATERIAL_TWO_SIDED } else { 0 },
-                    color_texture: m.color_texture.map_or(0, |t| t + 1),
-                    radiance_texture: m.radiance_texture.map_or(0, |t| t + 1),
-                })
-                .collect(),
-            lights: scene
-                .lights
-                .iter()
-                .map(|l| match l {
-                    Light::Point { position, intensity } => GpuLight {
-                        vector: position.cast::<f32>().to_array(),
-                        kind: LIGHT_POINT,
-                        intensity: rgb(*intensity),
-                        flags: 0,
-                    },
-                    Light::Directional { direction, intensity } => GpuLight {
-                        vector: direction.cast::<f32>().normalize().to_array(),
-                        kind: LIGHT_DIRECTIONAL,
-                        intensity: rgb(*intensity),
-                        flags: 0,
-                    },
-                })
-                .collect(),
-            emitters: Vec::new(),
-            emitter_norm: 0.0,
-            textures: Vec::new(),
-            texels: Vec::new(),
-            triangle_uvs: Vec::new(),
-            environment: Vec::new(),
-            env_distribution: Vec::new(),
-        };
-        if let Ok(tree) = GpuBvh::collapse(bvh, prims) {
-            (g.nodes, g.shape_refs, g.leaf_triangles) = (tree.nodes, tree.shape_refs, tree.triangles);
-        }
-        g.lights.extend(crate::render::emitters::stand_in_lights(scene));
-        let (emitters, norm) = crate::render::emitters::build_emitters(&g);
-        g.emitters = emitters;
-        g.emitter_norm = norm;
-        let map = scene.environment.as_ref().and_then(|e| e.map.as_ref());
-        if !scene.textures.is_empty() || map.is_some() {
-            (g.textures, g.texels) = crate::render::texture::pack(scene.textures.iter().chain(map));
-        }
-        if g.materials.iter().any(|m| m.color_texture != 0 || m.radiance_texture != 0) {
-            g.triangle_uvs = crate::render::texture::triangle_uvs(scene, prims);
-        }
-        if let Some(env) = &scene.environment {
-            let (e, distribution) =
-                crate::render::environment::build(env, scene.textures.len() as u32, !g.emitters.is_empty());
-            // Area emitters are chosen with probability 1 − select: their densities shrink so.
-            g.emitter_norm *= 1.0 - e.select_prob;
-            g.environment = vec![e];
-            g.env_distribution = distribution;
-        }
-        g
     }
 }
 

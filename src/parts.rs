@@ -6,7 +6,7 @@
 //! for bit. Parts that overlap, leave pixels out, or come from different renders are refused
 //! before any pixel is read.
 
-use crate::gpu_types::GpuFrame;
+use crate::gpu_types::FrameParams;
 use crate::image::{ExrPlacement, Image, Region, read_exr, read_exr_placement};
 use crate::render::Prepared;
 use crate::scene::RenderMode;
@@ -40,7 +40,7 @@ pub struct Description<'a> {
 /// pixel, max depth, seed and backend, a fingerprint of everything the pixels depend on besides
 /// (the flattened geometry, materials, lights and emitters, and the frame: camera, image size,
 /// background, ambient), and for information the scene's file name and the device.
-pub fn describe(d: &Description, prep: &Prepared, frame: &GpuFrame) -> BTreeMap<String, String> {
+pub fn describe(d: &Description, prep: &Prepared, frame: &FrameParams) -> BTreeMap<String, String> {
     let name = d.scene.file_name().map_or_else(|| d.scene.display().to_string(), |n| n.to_string_lossy().into_owned());
     BTreeMap::from([
         ("strahl.scene".to_string(), name),
@@ -58,9 +58,9 @@ pub fn describe(d: &Description, prep: &Prepared, frame: &GpuFrame) -> BTreeMap<
 /// backend: the flattened scene as both backends read it (not the BVH, which only speeds the
 /// search) and the whole image's frame. Equal renders give equal fingerprints on any machine
 /// (the bytes are little-endian f32 and u32 from the same scene file and code).
-pub fn fingerprint(prep: &Prepared, frame: &GpuFrame) -> u64 {
+pub fn fingerprint(prep: &Prepared, frame: &FrameParams) -> u64 {
     let g = &prep.gpu;
-    let whole = GpuFrame {
+    let whole = FrameParams {
         tile_origin: [0, 0],
         tile_size: [frame.width, frame.height],
         sample_base: 0,

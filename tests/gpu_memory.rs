@@ -47,7 +47,7 @@ fn memory_stays_flat_over_thousands_of_sample_passes() {
     // `strahl render` in Whitted mode: one sample pass per sample, with timestamp queries.
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
     let whitted = |spp: u32| {
-        let f = strahl::gpu_types::GpuFrame { spp, ..frame };
+        let f = strahl::gpu_types::FrameParams { spp, ..frame };
         render::render(&ctx, &buffers, &f, RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap()
     };
     whitted(64);

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::sync::Arc;
 use strahl::backend::cpu;
 use strahl::backend::gpu::{GpuContext, SceneBuffers, render::PathAccumulator};
-use strahl::gpu_types::GpuFrame;
+use strahl::gpu_types::FrameParams;
 use strahl::image::{Image, Region};
 use strahl::render::Prepared;
 use strahl::scene::{RenderMode, Scene, file::parse};
@@ -361,12 +361,12 @@ fn wavefront_and_megakernel_render_the_same_image() {
                 !prep.gpu.environment.is_empty() && !prep.gpu.triangle_uvs.is_empty() && !prep.gpu.emitters.is_empty()
             );
         }
-        let frame = GpuFrame { spp: 5, ..prep.frame(40, 30) };
+        let frame = FrameParams { spp: 5, ..prep.frame(40, 30) };
         assert_wavefront_is_megakernel(&ctx, &prep, frame, what);
     }
 }
 
-fn assert_wavefront_is_megakernel(ctx: &Arc<GpuContext>, prep: &Prepared, frame: GpuFrame, what: &str) {
+fn assert_wavefront_is_megakernel(ctx: &Arc<GpuContext>, prep: &Prepared, frame: FrameParams, what: &str) {
     use strahl::backend::gpu::{PathKernels, render::render_tiles, wavefront::Wavefront};
     let same = |how: &str, a: &Image, b: &Image| {
         assert_eq!(a.non_finite_count(), 0, "{what}, {how}");

@@ -1,6 +1,6 @@
 //! The CPU backend: the f32 mirror of the GPU, run with rayon over image rows.
 
-use crate::gpu_types::GpuFrame;
+use crate::gpu_types::FrameParams;
 use crate::image::{Image, Region};
 use crate::render::shade::ShadeInputs;
 use crate::render::{Prepared, path, shade};
@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Renders the image described by `frame` (its `width`, `height`, `spp`, `sample_base`) in
 /// `mode`. `progress` is called with the number of rows finished so far, from worker threads.
-pub fn render(prep: &Prepared, frame: &GpuFrame, mode: RenderMode, progress: &(dyn Fn(u64) + Sync)) -> Image {
+pub fn render(prep: &Prepared, frame: &FrameParams, mode: RenderMode, progress: &(dyn Fn(u64) + Sync)) -> Image {
     render_region(prep, frame, mode, Region::whole(frame.width, frame.height), progress)
 }
 
@@ -21,7 +21,7 @@ pub fn render(prep: &Prepared, frame: &GpuFrame, mode: RenderMode, progress: &(d
 /// finished so far, from worker threads.
 pub fn render_region(
     prep: &Prepared,
-    frame: &GpuFrame,
+    frame: &FrameParams,
     mode: RenderMode,
     region: Region,
     progress: &(dyn Fn(u64) + Sync),
@@ -51,21 +51,21 @@ pub fn render_region(
 /// the order the GPU's passes add them.
 pub struct PathAccumulator {
     prep: Arc<Prepared>,
-    frame: GpuFrame,
+    frame: FrameParams,
     sums: Vec<[f32; 3]>,
     samples: u32,
 }
 
 impl PathAccumulator {
     /// An empty accumulation for `frame` (whole image; its `spp` and `sample_base` are ignored).
-    pub fn new(prep: Arc<Prepared>, frame: GpuFrame) -> Self {
+    pub fn new(prep: Arc<Prepared>, frame: FrameParams) -> Self {
         let n = frame.width as usize * frame.height as usize;
         Self { prep, frame, sums: vec![[0.0; 3]; n], samples: 0 }
     }
 
     /// Adds samples `samples() .. samples() + n` to every pixel.
     pub fn add_samples(&mut self, n: u32) {
-        let frame = GpuFrame { spp: 1, ..self.frame };
+        let frame = FrameParams { spp: 1, ..self.frame };
         let prep = &self.prep;
         let inputs = ShadeInputs { prims: &prep.prims, wide: &prep.wide, gpu: &prep.gpu, frame: &frame };
         let first = self.samples;

@@ -25,7 +25,7 @@ use std::time::{Duration, Instant};
 use strahl::backend::gpu::render::{PathAccumulator, render, render_tiles};
 use strahl::backend::gpu::wavefront::Wavefront;
 use strahl::backend::gpu::{FeatureKey, GpuContext, PathKernels, SceneBuffers};
-use strahl::gpu_types::GpuFrame;
+use strahl::gpu_types::FrameParams;
 use strahl::image::Region;
 use strahl::render::Prepared;
 use strahl::scene::{RenderMode, Scene};
@@ -268,7 +268,7 @@ fn bench_whitted(
 /// timed render with timestamp queries; frame times from progressive renders) and the CPU
 /// backend, `a.spp` samples per pixel a frame.
 fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: u32, h: u32) -> Result<Value> {
-    let frame = GpuFrame { spp: a.spp, ..prep.frame(w, h) };
+    let frame = FrameParams { spp: a.spp, ..prep.frame(w, h) };
     let samples = w as f64 * h as f64 * a.spp as f64;
     let mut gpu = Vec::new();
     let row = |kernels: &str, features: String, wall: Duration, times: &[(&str, Duration)]| {

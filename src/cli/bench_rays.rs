@@ -211,7 +211,7 @@ fn cast_gpu(
     use strahl::query::RayQuery;
     let ctx = GpuContext::new()?;
     let start = Instant::now();
-    let gpu = strahl::gpu_types::GpuScene::new(scene, prims, bvh);
+    let gpu = strahl::gpu_types::FlatScene::new(scene, prims, bvh);
     let buffers = SceneBuffers::upload(&ctx, &gpu)?;
     let upload_s = start.elapsed().as_secs_f64();
     // What the walk reads: nodes, leaf-order triangles and shape references.

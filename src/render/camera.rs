@@ -1,26 +1,26 @@
 //! Primary rays: the pinhole camera of the scene file (`raygen.wgsl` is the twin of
 //! [`primary_ray`]).
 
-use crate::gpu_types::GpuFrame;
+use crate::gpu_types::FrameParams;
 use crate::math::{Ray, V3};
 use crate::scene::Camera;
 
 /// The camera frame for a `width`×`height` image. +x of the view appears on the right and
 /// +y up; the view looks along `look_at − eye`.
-pub fn frame(cam: &Camera, width: u32, height: u32) -> GpuFrame {
+pub fn frame(cam: &Camera, width: u32, height: u32) -> FrameParams {
     let forward = (cam.look_at - cam.eye).normalize();
     let right = cam.up.cross(forward).normalize();
     let up = forward.cross(right);
     let half_h = (cam.fov_y.to_radians() * 0.5).tan();
     let half_w = half_h * width as f64 / height as f64;
-    GpuFrame {
+    FrameParams {
         eye: cam.eye.cast::<f32>().to_array(),
         width,
         forward: forward.cast::<f32>().to_array(),
         height,
         right: (right * half_w).cast::<f32>().to_array(),
         up: (up * half_h).cast::<f32>().to_array(),
-        ..GpuFrame::default()
+        ..FrameParams::default()
     }
 }
 
@@ -35,14 +35,14 @@ pub fn sample_offset(s: u32) -> (f32, f32) {
 
 /// The primary ray p = p_v + μd through pixel (x, y) (row 0 at the top) for sample `s`.
 #[inline]
-pub fn primary_ray(f: &GpuFrame, x: u32, y: u32, s: u32) -> Ray<f32> {
+pub fn primary_ray(f: &FrameParams, x: u32, y: u32, s: u32) -> Ray<f32> {
     let (ox, oy) = sample_offset(s);
     ray_through(f, x, y, ox, oy)
 }
 
 /// The ray through sub-pixel position (ox, oy) ∈ [0, 1)² of pixel (x, y).
 #[inline]
-pub fn ray_through(f: &GpuFrame, x: u32, y: u32, ox: f32, oy: f32) -> Ray<f32> {
+pub fn ray_through(f: &FrameParams, x: u32, y: u32, ox: f32, oy: f32) -> Ray<f32> {
     let u = 2.0 * (x as f32 + ox) / f.width as f32 - 1.0;
     let v = 1.0 - 2.0 * (y as f32 + oy) / f.height as f32;
     let forward = V3::from_array(f.forward);

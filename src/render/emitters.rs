@@ -6,7 +6,7 @@
 //! (mean radiance × area), then a point is drawn uniformly on the chosen area. For an emitter
 //! of radiance L the two steps give the area density (mean(L)·A/W)·(1/A) = mean(L)/W, the same
 //! for every triangle or sphere of that radiance: that is
-//! [`crate::gpu_types::GpuFrame::emitter_norm`] = 1/W.
+//! [`crate::gpu_types::FrameParams::emitter_norm`] = 1/W.
 //!
 //! Point and directional lights are not chosen: each is evaluated at every vertex
 //! ([`delta_light`]), one shadow ray apiece, as Whitted shading does. Chosen by power among the
@@ -15,126 +15,16 @@
 //! beside one it was drawn once in ~700 vertices and weighted ~700× (fireflies).
 //!
 //! Emissive cylinders and planes are not sampled (a plane has no finite area): they light the
-//! scene through paths that hit them, with MIS weight 1.
+//! scene through paths that hit them, with MIS weight 1. The emitter table itself is built with
+//! the rest of the flattened scene ([`super::flatten`]).
 
-use crate::gpu_types::{
-    EMITTER_AREA, GpuEmitter, GpuFrame, GpuLight, GpuScene, LIGHT_POINT, LIGHT_STAND_IN, MATERIAL_TWO_SIDED,
-};
+use crate::gpu_types::{FlatScene, FrameParams, GpuEmitter, GpuLight, LIGHT_POINT, LIGHT_STAND_IN, MATERIAL_TWO_SIDED};
 use crate::math::V3;
 use crate::primitives::{PrimKind, PrimRef};
-use crate::scene::{Geometry, MaterialKind, Scene};
 
-const PI: f64 = std::f64::consts::PI;
-
-fn mean(c: [f32; 3]) -> f32 {
+/// The mean of a colour's channels: the weight of a radiance in the emitter choice.
+pub(super) fn mean(c: [f32; 3]) -> f32 {
     (c[0] + c[1] + c[2]) / 3.0
-}
-
-/// Whitted mode has no area lights: each emissive object lights the scene as a point light
-/// at its centre whose intensity is its radiance times its (projected) area, the on-axis
-/// intensity of a Lambertian emitter. Shadow rays pass through emissive surfaces, so the
-/// object does not hide its own stand-in. Planes have no finite area and get none.
-pub fn stand_in_lights(scene: &Scene) -> Vec<GpuLight> {
-    // The radiance an emissive material gives off on average (its texture's mean included).
-    let emitted = |material: u32| -> Option<[f64; 3]> {
-        let m = &scene.materials[material as usize];
-        if m.kind != MaterialKind::Emissive || m.radiance.iter().all(|&c| c <= 0.0) {
-            return None;
-        }
-        let scale = m.radiance_texture.map_or([1.0; 3], |t| scene.textures[t as usize].mean());
-        Some([0, 1, 2].map(|c| m.radiance[c] * scale[c]))
-    };
-    let mut out = Vec::new();
-    let mut push = |centre: V3<f64>, area: f64, radiance: [f64; 3]| {
-        if area > 0.0 {
-            out.push(GpuLight {
-                vector: centre.cast::<f32>().to_array(),
-                kind: LIGHT_POINT,
-                intensity: radiance.map(|c| (c * area) as f32),
-                flags: LIGHT_STAND_IN,
-            });
-        }
-    };
-    for o in &scene.objects {
-        if let Geometry::Mesh { triangles, materials, .. } = &o.geometry
-            && !materials.is_empty()
-        {
-            // A glTF mesh: one stand-in per emissive material it uses.
-            let mut groups: std::collections::BTreeMap<u32, Vec<crate::geometry::Triangle<f64>>> = Default::default();
-            for (t, &m) in triangles.iter().zip(materials) {
-                if emitted(m).is_some() {
-                    groups.entry(m).or_default().push(*t);
-                }
-            }
-            for (m, tris) in groups {
-                let (centre, area) = area_centroid(&tris);
-                push(centre, area, emitted(m).expect("grouped by emission"));
-            }
-            continue;
-        }
-        let Some(radiance) = emitted(o.material) else { continue };
-        let (centre, area) = match &o.geometry {
-            Geometry::Sphere(s) => (s.center, PI * s.radius * s.radius),
-            Geometry::Cylinder(c) => ((c.p1 + c.p2) * 0.5, 2.0 * c.radius * (c.p2 - c.p1).length()),
-            Geometry::Plane(_) => continue,
-            Geometry::Triangle(t) => area_centroid(std::slice::from_ref(t)),
-            Geometry::Polygon { triangles, .. } | Geometry::Mesh { triangles, .. } => area_centroid(triangles),
-        };
-        push(centre, area, radiance);
-    }
-    out
-}
-
-fn area_centroid(tris: &[crate::geometry::Triangle<f64>]) -> (V3<f64>, f64) {
-    let mut sum = V3::zero();
-    let mut area = 0.0;
-    for t in tris {
-        let a = 0.5 * (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).length();
-        sum += (t.v[0] + t.v[1] + t.v[2]) * (a / 3.0);
-        area += a;
-    }
-    (if area > 0.0 { sum / area } else { V3::zero() }, area)
-}
-
-/// The area-emitter table of `g` and 1 / Σ weights.
-pub fn build_emitters(g: &GpuScene) -> (Vec<GpuEmitter>, f32) {
-    let emissive = |material: u32| {
-        let m = &g.materials[material as usize];
-        (m.kind == MaterialKind::Emissive as u32 && mean(m.radiance) > 0.0).then(|| mean(m.radiance) as f64)
-    };
-    let mut entries: Vec<(u32, u32, f64)> = Vec::new();
-    for (i, t) in g.triangles.iter().enumerate() {
-        if let Some(l) = emissive(t.material) {
-            let (a, b, c) =
-                (V3::from_array(t.va).to_f64(), V3::from_array(t.vb).to_f64(), V3::from_array(t.vc).to_f64());
-            let area = 0.5 * (b - a).cross(c - a).length();
-            if area > 0.0 {
-                entries.push((PrimRef::new(PrimKind::Triangle, i).0, EMITTER_AREA, l * area));
-            }
-        }
-    }
-    for (i, s) in g.spheres.iter().enumerate() {
-        if let Some(l) = emissive(s.material) {
-            let r = s.radius as f64;
-            entries.push((PrimRef::new(PrimKind::Sphere, i).0, EMITTER_AREA, l * 4.0 * PI * r * r));
-        }
-    }
-    let total: f64 = entries.iter().map(|e| e.2).sum();
-    if entries.is_empty() || total <= 0.0 || !total.is_finite() {
-        return (Vec::new(), 0.0);
-    }
-    let mut cum = 0.0;
-    let n = entries.len();
-    let emitters = entries
-        .into_iter()
-        .enumerate()
-        .map(|(k, (prim, kind, w))| {
-            cum += w;
-            let cdf = if k + 1 == n { 1.0 } else { (cum / total) as f32 };
-            GpuEmitter { prim, kind, cdf, pdf: (w / total) as f32 }
-        })
-        .collect();
-    (emitters, (1.0 / total) as f32)
 }
 
 /// Index of the emitter `u` ∈ [0, 1) selects: the first whose cdf exceeds `u`.
@@ -190,7 +80,7 @@ pub fn delta_light(l: &GpuLight, p: V3<f32>) -> Option<LightSample> {
 
 /// Draws an area-light sample for shading point `p` from three uniform numbers; None when the
 /// sampled point faces away or the scene has no area emitters.
-pub fn sample(g: &GpuScene, frame: &GpuFrame, p: V3<f32>, u: [f32; 3]) -> Option<LightSample> {
+pub fn sample(g: &FlatScene, frame: &FrameParams, p: V3<f32>, u: [f32; 3]) -> Option<LightSample> {
     let mut u0 = u[0];
     if let Some(env) = g.environment.first() {
         // The environment with probability `select`, else an area emitter with u[0] rescaled.
@@ -255,7 +145,7 @@ pub fn emitted_cos(material_flags: u32, cos: f32) -> f32 {
 /// Solid-angle density with which [`sample`] picks a point at squared distance `d2` and
 /// emitter cosine `cos_l` on an area emitter of radiance `radiance`.
 #[inline]
-pub fn area_pdf(frame: &GpuFrame, radiance: [f32; 3], d2: f32, cos_l: f32) -> f32 {
+pub fn area_pdf(frame: &FrameParams, radiance: [f32; 3], d2: f32, cos_l: f32) -> f32 {
     mean(radiance) * frame.emitter_norm * d2 / cos_l
 }
 

@@ -24,7 +24,7 @@
 //! (clamped at 0) around a small bright sun.
 
 use super::texture;
-use crate::gpu_types::{ENV_MAP, ENV_UNIFORM, GpuEnvironment, GpuFrame, GpuScene};
+use crate::gpu_types::{ENV_MAP, ENV_UNIFORM, FlatScene, FrameParams, GpuEnvironment};
 use crate::math::{Real, V3};
 use crate::scene::{EnvSampling, Environment, texture::Texels};
 
@@ -200,7 +200,7 @@ fn map_uv(e: &GpuEnvironment, d: V3<f32>) -> (f32, f32) {
 
 /// Radiance arriving along `-d` from the environment, i.e. seen by a ray leaving in direction
 /// `d`; without an environment the frame's constant background.
-pub fn background(g: &GpuScene, f: &GpuFrame, d: V3<f32>) -> V3<f32> {
+pub fn background(g: &FlatScene, f: &FrameParams, d: V3<f32>) -> V3<f32> {
     let Some(e) = g.environment.first() else {
         return V3::from_array(f.background);
     };
@@ -229,7 +229,7 @@ fn find_cell(cdf: &[f32], u: f32) -> usize {
 
 /// Density of the map's distribution at cell (i, j), over (u, v) ∈ [0, 1]².
 #[inline]
-fn cell_pdf(g: &GpuScene, e: &GpuEnvironment, i: usize, j: usize) -> f32 {
+fn cell_pdf(g: &FlatScene, e: &GpuEnvironment, i: usize, j: usize) -> f32 {
     let (w, h) = (e.width as usize, e.height as usize);
     let marginal = &g.env_distribution[..h + 1];
     let row = &g.env_distribution[h + 1 + j * (w + 1)..h + 1 + (j + 1) * (w + 1)];
@@ -238,7 +238,7 @@ fn cell_pdf(g: &GpuScene, e: &GpuEnvironment, i: usize, j: usize) -> f32 {
 
 /// Solid-angle density with which next-event estimation picks direction `d` towards the
 /// environment (the choice between it and the area emitters included); 0 without one.
-pub fn pdf(g: &GpuScene, d: V3<f32>) -> f32 {
+pub fn pdf(g: &FlatScene, d: V3<f32>) -> f32 {
     let Some(e) = g.environment.first() else {
         return 0.0;
     };
@@ -260,7 +260,7 @@ pub fn pdf(g: &GpuScene, d: V3<f32>) -> f32 {
 
 /// A direction towards the environment from two uniform numbers, with the radiance along it
 /// divided by its density, and that density ([`pdf`]); None where the density is 0.
-pub fn sample(g: &GpuScene, f: &GpuFrame, u1: f32, u2: f32) -> Option<(V3<f32>, V3<f32>, f32)> {
+pub fn sample(g: &FlatScene, f: &FrameParams, u1: f32, u2: f32) -> Option<(V3<f32>, V3<f32>, f32)> {
     let e = g.environment.first()?;
     let (d, pdf) = if e.flags & ENV_UNIFORM != 0 {
         let z = 1.0 - 2.0 * u1;
@@ -294,7 +294,7 @@ pub fn sample(g: &GpuScene, f: &GpuFrame, u1: f32, u2: f32) -> Option<(V3<f32>, 
 /// Whitted's diffuse light from the environment at a surface of normal `n` (unit): its
 /// irradiance about n over π, from the spherical-harmonic projection, not shadowed; 0 without
 /// an environment.
-pub fn diffuse(g: &GpuScene, n: V3<f32>) -> V3<f32> {
+pub fn diffuse(g: &FlatScene, n: V3<f32>) -> V3<f32> {
     let Some(e) = g.environment.first() else {
         return V3::zero();
     };
@@ -313,8 +313,8 @@ mod tests {
     use crate::render::sampler::Sampler;
     use crate::scene::texture::{Texture, Wrap};
 
-    fn scene_with(env: Environment) -> GpuScene {
-        let mut g = GpuScene::default();
+    fn scene_with(env: Environment) -> FlatScene {
+        let mut g = FlatScene::default();
         let map = env.map.as_ref();
         if let Some(m) = map {
             (g.textures, g.texels) = texture::pack(std::iter::once(m));
@@ -358,11 +358,11 @@ mod tests {
         // 8 × 8 texels: the top two rows 10, the others their column number.
         let texels = |x: u32, y: u32| if y < 2 { 10.0 } else { x as f32 };
         let g = scene_with(map(8, 8, texels));
-        let f = GpuFrame::default();
+        let f = FrameParams::default();
         assert_eq!(background(&g, &f, V3::new(0.0, 1.0, 0.0)).x, 10.0);
         // Along +x: u = 0.75, between the centres of columns 5 and 6; along −x: u = 0.25,
         // between 1 and 2; along +z, the middle.
-        let at = |g: &GpuScene, d: V3<f32>| background(g, &f, d.normalize()).x;
+        let at = |g: &FlatScene, d: V3<f32>| background(g, &f, d.normalize()).x;
         assert!((at(&g, V3::new(1.0, -0.1, 0.0)) - 5.5).abs() < 1e-4);
         assert!((at(&g, V3::new(-1.0, -0.1, 0.0)) - 1.5).abs() < 1e-4);
         assert!((at(&g, V3::new(0.0, -0.1, 1.0)) - 3.5).abs() < 1e-4);
@@ -380,7 +380,7 @@ mod tests {
         // A dim sky with a bright 2 × 1 patch.
         let env = map(32, 16, |x, y| if (x == 20 || x == 21) && y == 5 { 500.0 } else { 0.5 });
         let g = scene_with(env.clone());
-        let f = GpuFrame::default();
+        let f = FrameParams::default();
         let mut rng = Sampler::new(3, 4, 5);
         let n = 200_000;
         let mut sum = 0.0f64;

@@ -9,6 +9,7 @@ pub mod bsdf;
 pub mod camera;
 pub mod emitters;
 pub mod environment;
+pub mod flatten;
 pub mod path;
 pub mod sampler;
 pub mod shade;
@@ -16,7 +17,7 @@ pub mod spawn;
 pub mod texture;
 
 use crate::accel::{Bvh, WideBvh};
-use crate::gpu_types::{GpuFrame, GpuScene};
+use crate::gpu_types::{FlatScene, FrameParams};
 use crate::primitives::Primitives;
 use crate::scene::Scene;
 use std::time::{Duration, Instant};
@@ -28,7 +29,7 @@ pub struct Prepared {
     pub prims: Primitives<f32>,
     pub bvh: Bvh,
     pub wide: WideBvh,
-    pub gpu: GpuScene,
+    pub gpu: FlatScene,
     /// Time spent flattening and building the BVH.
     pub build_time: Duration,
 }
@@ -72,6 +73,23 @@ pub fn check_memory(scene: &Scene, available: Option<u64>) -> Result<(), TooLarg
 }
 
 impl Prepared {
+    /// Flattens `scene` and builds its BVH over the objects whose `visible` entry is true (a
+    /// missing entry counts as visible). Hidden objects' primitives are left out; every other
+    /// primitive keeps its object id, so object numbers mean what they mean in the file.
+    pub fn with_visible(scene: Scene, visible: &[bool]) -> Self {
+        if visible.iter().all(|&v| v) {
+            return Self::new(scene);
+        }
+        let start = Instant::now();
+        let shown = |object: u32| visible.get(object as usize).copied().unwrap_or(true);
+        let mut prims = Primitives::<f32>::from_scene(&scene);
+        prims.spheres.retain(|p| shown(p.tag.object));
+        prims.cylinders.retain(|p| shown(p.tag.object));
+        prims.triangles.retain(|p| shown(p.tag.object));
+        prims.planes.retain(|p| shown(p.tag.object));
+        Self::from_prims(scene, prims, start)
+    }
+
     /// [`Prepared::new`] after checking that the scene fits in the memory available now.
     pub fn try_new(scene: Scene) -> Result<Self, TooLarge> {
         check_memory(&scene, available_memory())?;
@@ -89,12 +107,12 @@ impl Prepared {
     pub fn from_prims(scene: Scene, prims: Primitives<f32>, start: Instant) -> Self {
         let bvh = Bvh::build(&prims);
         let wide = WideBvh::new(&bvh, &prims);
-        let gpu = GpuScene::new(&scene, &prims, &bvh);
+        let gpu = FlatScene::new(&scene, &prims, &bvh);
         Self { scene, prims, bvh, wide, gpu, build_time: start.elapsed() }
     }
 
     /// The frame parameters for rendering the whole image at `width`×`height`.
-    pub fn frame(&self, width: u32, height: u32) -> GpuFrame {
+    pub fn frame(&self, width: u32, height: u32) -> FrameParams {
         let s = &self.scene.render;
         let mut f = camera::frame(&self.scene.camera, width, height);
         f.spp = s.spp;

@@ -11,7 +11,7 @@ use super::environment;
 use super::spawn::spawn_origin;
 use super::texture;
 use crate::accel::{WideBvh, wide_traverse};
-use crate::gpu_types::{GpuFrame, GpuLight, GpuMaterial, GpuScene, LIGHT_POINT};
+use crate::gpu_types::{FlatScene, FrameParams, GpuLight, GpuMaterial, LIGHT_POINT};
 use crate::math::{Ray, V3};
 use crate::primitives::Primitives;
 use crate::scene::MaterialKind;
@@ -31,8 +31,8 @@ const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
 pub struct ShadeInputs<'a> {
     pub prims: &'a Primitives<f32>,
     pub wide: &'a WideBvh,
-    pub gpu: &'a GpuScene,
-    pub frame: &'a GpuFrame,
+    pub gpu: &'a FlatScene,
+    pub frame: &'a FrameParams,
 }
 
 #[derive(Clone, Copy)]

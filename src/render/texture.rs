@@ -3,9 +3,9 @@
 //! texels both backends read.
 //!
 //! **How texels reach the GPU.** Every image is packed into one storage buffer of 32-bit words
-//! ([`GpuScene::texels`]): first the sRGB → linear table of the 256 codes (f32 bits), then each
+//! ([`FlatScene::texels`]): first the sRGB → linear table of the 256 codes (f32 bits), then each
 //! colour texture at one word per texel (its 8-bit sRGB codes), then the environment map at
-//! three words per texel (linear f32 RGB). A small table ([`GpuScene::textures`]) gives each
+//! three words per texel (linear f32 RGB). A small table ([`FlatScene::textures`]) gives each
 //! image's size, first word and flags. Lookups are done by hand in the shader (no sampler, no
 //! texture object), so the CPU reproduces them operation for operation: a colour texel is the
 //! table entry of each code (exactly the value the CPU decodes), and the bilinear weights come
@@ -13,7 +13,7 @@
 //! 128 MiB, 32 M colour texels); the error says so before anything is allocated.
 
 use crate::gpu_types::{
-    GpuMaterial, GpuScene, GpuTexture, GpuTriangleUv, SRGB_TABLE_WORDS, TEXTURE_LINEAR_RGB, TEXTURE_NEAREST,
+    FlatScene, GpuMaterial, GpuTexture, GpuTriangleUv, SRGB_TABLE_WORDS, TEXTURE_LINEAR_RGB, TEXTURE_NEAREST,
     TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT,
 };
 use crate::math::V3;
@@ -146,7 +146,7 @@ pub fn barycentrics(a: V3<f32>, b: V3<f32>, c: V3<f32>, p: V3<f32>) -> (f32, f32
 
 /// Texture coordinates at barycentric weights (β, γ) of triangle `tri` (scene order).
 #[inline]
-pub fn uv_at(g: &GpuScene, tri: usize, beta: f32, gamma: f32) -> (f32, f32) {
+pub fn uv_at(g: &FlatScene, tri: usize, beta: f32, gamma: f32) -> (f32, f32) {
     let t = &g.triangle_uvs[tri];
     let alpha = 1.0 - beta - gamma;
     (t.a[0] * alpha + t.b[0] * beta + t.c[0] * gamma, t.a[1] * alpha + t.b[1] * beta + t.c[1] * gamma)
@@ -154,7 +154,7 @@ pub fn uv_at(g: &GpuScene, tri: usize, beta: f32, gamma: f32) -> (f32, f32) {
 
 /// `texture` (1 + index; 0: none) at barycentric weights (β, γ) of triangle `tri`, else 1.
 #[inline]
-pub fn factor_at(g: &GpuScene, texture: u32, tri: usize, beta: f32, gamma: f32) -> V3<f32> {
+pub fn factor_at(g: &FlatScene, texture: u32, tri: usize, beta: f32, gamma: f32) -> V3<f32> {
     if texture == 0 {
         return V3::splat(1.0);
     }
@@ -165,7 +165,7 @@ pub fn factor_at(g: &GpuScene, texture: u32, tri: usize, beta: f32, gamma: f32) 
 /// Material `m` as seen at the hit point `p` on primitive `prim`: its colour and radiance
 /// multiplied by its textures there (triangles only; other primitives have no texture
 /// coordinates).
-pub fn textured(g: &GpuScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>) -> GpuMaterial {
+pub fn textured(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>) -> GpuMaterial {
     if (m.color_texture == 0 && m.radiance_texture == 0) || prim.kind() != PrimKind::Triangle {
         return *m;
     }

@@ -3,7 +3,7 @@
 
 use super::Viewer;
 use super::jobs::Job;
-use crate::gpu_types::GpuFrame;
+use crate::gpu_types::FrameParams;
 use crate::metrics::Agreement;
 use eframe::egui;
 use std::time::{Duration, Instant};
@@ -26,7 +26,7 @@ pub(super) struct ComparisonView {
 impl Viewer {
     /// Reads the GPU image back and starts the CPU render of the same samples, once the
     /// accumulation sits on a whole number of passes.
-    pub(super) fn maybe_start_comparison(&mut self, frame: &GpuFrame) {
+    pub(super) fn maybe_start_comparison(&mut self, frame: &FrameParams) {
         let acc = self.gpu.acc;
         if !self.compare_requested || self.cpu_job.is_some() || acc.samples == 0 || acc.next_tile != 0 {
             return;
@@ -43,7 +43,7 @@ impl Viewer {
             }
         };
         let prep = self.prep.clone();
-        let frame = GpuFrame { spp: acc.samples, sample_base: 0, flags: 0, ..*frame };
+        let frame = FrameParams { spp: acc.samples, sample_base: 0, flags: 0, ..*frame };
         self.cpu_job = Some(Job::spawn(move || {
             let start = Instant::now();
             let cpu = crate::backend::cpu::render(&prep, &frame, render_mode, &|_| {});

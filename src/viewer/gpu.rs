@@ -6,7 +6,7 @@
 
 use crate::backend::gpu::render::{Band, record_pass};
 use crate::backend::gpu::{GpuContext, GpuError, Program, SceneBuffers};
-use crate::gpu_types::{self as g, GpuFrame};
+use crate::gpu_types::{self as g, FrameParams};
 use crate::image::Image;
 use eframe::egui;
 use eframe::egui_wgpu;
@@ -351,7 +351,7 @@ impl ViewRenderer {
         &mut self,
         scene: &SceneBuffers,
         pipeline: &wgpu::ComputePipeline,
-        frame: &GpuFrame,
+        frame: &FrameParams,
         budget: u32,
         max_samples: u32,
         present: PresentParams,
@@ -374,7 +374,7 @@ impl ViewRenderer {
                 let (_, size) = band.tile_rect(i);
                 rays += size[0] as u64 * size[1] as u64;
             }
-            let pass = GpuFrame { sample_base: self.acc.samples, ..*frame };
+            let pass = FrameParams { sample_base: self.acc.samples, ..*frame };
             let accumulate = self.acc.samples > 0;
             record_pass(&self.ctx, &mut enc, scene, pipeline, &target.out_group, &pass, &band, range, accumulate, None);
             self.acc.next_tile += take;

@@ -19,7 +19,7 @@ mod reload;
 mod screenshot;
 
 use crate::backend::gpu::{CachedPipeline, FeatureKey, GpuContext, Program, SceneBuffers};
-use crate::gpu_types::GpuFrame;
+use crate::gpu_types::FrameParams;
 use crate::render::Prepared;
 use anyhow::{Context as _, Result, anyhow};
 use camera::ViewCamera;
@@ -126,7 +126,7 @@ struct Viewer {
     max_samples: u32,
     heat_max: f32,
     /// What the accumulation holds: the frame and scene generation it was started with.
-    accumulating: Option<(GpuFrame, u64)>,
+    accumulating: Option<(FrameParams, u64)>,
     present_dirty: bool,
     pacer: Pacer,
     load_job: Option<Job<Loaded>>,
@@ -272,7 +272,7 @@ impl Viewer {
     }
 
     /// The frame parameters of the current view at `w`×`h` (one sample per pass).
-    fn frame(&self, w: u32, h: u32) -> GpuFrame {
+    fn frame(&self, w: u32, h: u32) -> FrameParams {
         let mut f = self.prep.frame(w, h);
         let c = crate::render::camera::frame(&self.camera.to_camera(), w, h);
         f.eye = c.eye;

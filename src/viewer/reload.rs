@@ -4,15 +4,12 @@
 use super::Viewer;
 use super::camera::ViewCamera;
 use super::jobs::Job;
-use crate::accel::Bvh;
 use crate::backend::gpu::{FeatureKey, SceneBuffers};
-use crate::gpu_types::GpuScene;
 use crate::primitives::Primitives;
 use crate::render::Prepared;
 use crate::scene::{Geometry, Scene};
 use std::path::Path;
 use std::sync::Arc;
-use std::time::Instant;
 
 /// Loaded off the UI thread: the prepared scene (hidden objects left out) and the key of
 /// the whole scene.
@@ -20,29 +17,7 @@ pub(super) type Loaded = Result<(Prepared, FeatureKey, Vec<bool>), String>;
 
 /// The key of the shader that can render every object of `scene`.
 pub(super) fn full_key(scene: &crate::scene::Scene) -> FeatureKey {
-    let prims = Primitives::<f32>::from_scene(scene);
-    let mut key = FeatureKey::for_scene(&GpuScene::new(scene, &prims, &Bvh::default()));
-    if prims.bounded_count() > FeatureKey::BRUTE_FORCE_MAX {
-        key.0 |= FeatureKey::BVH;
-    }
-    key
-}
-
-/// Flattens `scene` and builds its BVH over the objects whose `visible` entry is true (a
-/// missing entry counts as visible). Hidden objects' primitives are left out; every other
-/// primitive keeps its object id, so object numbers mean what they mean in the file.
-pub fn prepare(scene: Scene, visible: &[bool]) -> Prepared {
-    if visible.iter().all(|&v| v) {
-        return Prepared::new(scene);
-    }
-    let start = Instant::now();
-    let shown = |object: u32| visible.get(object as usize).copied().unwrap_or(true);
-    let mut prims = Primitives::<f32>::from_scene(&scene);
-    prims.spheres.retain(|p| shown(p.tag.object));
-    prims.cylinders.retain(|p| shown(p.tag.object));
-    prims.triangles.retain(|p| shown(p.tag.object));
-    prims.planes.retain(|p| shown(p.tag.object));
-    Prepared::from_prims(scene, prims, start)
+    FeatureKey::of_scene(scene, &Primitives::<f32>::from_scene(scene))
 }
 
 /// "3 mesh (glass)": an object's line in the visibility list.
@@ -92,7 +67,7 @@ impl Viewer {
             let scene = crate::scene::Scene::load(&path).map_err(|e| e.to_string())?;
             let key = full_key(&scene);
             let visible = if visible.len() == scene.objects.len() { visible } else { vec![true; scene.objects.len()] };
-            Ok((prepare(scene, &visible), key, visible))
+            Ok((Prepared::with_visible(scene, &visible), key, visible))
         }));
     }
 
@@ -104,7 +79,7 @@ impl Viewer {
         let scene = self.prep.scene.clone();
         let visible = self.visible.clone();
         let file_gen = self.file_gen;
-        self.visibility_job = Some(Job::spawn(move || (file_gen, prepare(scene, &visible))));
+        self.visibility_job = Some(Job::spawn(move || (file_gen, Prepared::with_visible(scene, &visible))));
     }
 
     /// Takes in a finished reload or re-preparation.
@@ -167,10 +142,10 @@ mod tests {
         let scene = Scene::load(&path).unwrap();
         let n = scene.objects.len();
         assert!(n >= 3);
-        let all = prepare(scene.clone(), &vec![true; n]);
+        let all = Prepared::with_visible(scene.clone(), &vec![true; n]);
         let mut visible = vec![true; n];
         visible[1] = false;
-        let some = prepare(scene.clone(), &visible);
+        let some = Prepared::with_visible(scene.clone(), &visible);
         let ids = |p: &Prepared| p.gpu.spheres.iter().map(|s| s.object).collect::<Vec<_>>();
         assert_eq!(ids(&all).len(), ids(&some).len() + 1);
         assert!(ids(&some).iter().all(|&o| o != 1) && ids(&some).contains(&2));

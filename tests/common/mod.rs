@@ -37,7 +37,7 @@ pub use strahl::rng::SplitMix64 as Rng;
 /// The mean of `spp` path-traced samples per pixel of `frame` on the CPU.
 pub fn cpu_path_image(
     prep: &std::sync::Arc<strahl::render::Prepared>,
-    frame: strahl::gpu_types::GpuFrame,
+    frame: strahl::gpu_types::FrameParams,
     spp: u32,
 ) -> strahl::image::Image {
     let mut p = strahl::backend::cpu::PathAccumulator::new(prep.clone(), frame);
@@ -49,7 +49,7 @@ pub fn cpu_path_image(
 pub fn gpu_path_image(
     ctx: &std::sync::Arc<GpuContext>,
     prep: &strahl::render::Prepared,
-    frame: strahl::gpu_types::GpuFrame,
+    frame: strahl::gpu_types::FrameParams,
     spp: u32,
 ) -> strahl::image::Image {
     let buffers = strahl::backend::gpu::SceneBuffers::upload(ctx, &prep.gpu).unwrap();

@@ -13,7 +13,7 @@ pub mod wavefront;
 pub use shaders::{FeatureKey, Program};
 
 use crate::accel::gpu_bvh::MAX_PRIMS;
-use crate::gpu_types::{GpuFrame, GpuScene};
+use crate::gpu_types::{FlatScene, FrameParams};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -365,7 +365,7 @@ pub struct SceneBuffers {
 }
 
 impl SceneBuffers {
-    pub fn upload(ctx: &GpuContext, g: &GpuScene) -> Result<Self, GpuError> {
+    pub fn upload(ctx: &GpuContext, g: &FlatScene) -> Result<Self, GpuError> {
         if g.bounded_count() > MAX_PRIMS {
             return Err(GpuError::TooManyPrimitives { count: g.bounded_count(), limit: MAX_PRIMS });
         }
@@ -394,7 +394,7 @@ impl SceneBuffers {
         let buffers = arrays.map(|a| ctx.storage_bytes(a.what, a.bytes, a.element));
         let frame = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
-            size: std::mem::size_of::<GpuFrame>() as u64,
+            size: std::mem::size_of::<FrameParams>() as u64,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });

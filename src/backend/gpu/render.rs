@@ -4,7 +4,7 @@
 
 use super::wavefront::Wavefront;
 use super::{CachedPipeline, FeatureKey, GpuContext, GpuError, PathKernels, Program, SceneBuffers};
-use crate::gpu_types::{FRAME_ACCUMULATE, GpuFrame};
+use crate::gpu_types::{FRAME_ACCUMULATE, FrameParams};
 use crate::image::{Image, Region};
 use crate::scene::RenderMode;
 use std::sync::Arc;
@@ -55,7 +55,7 @@ pub fn program_for(mode: RenderMode) -> (Program, &'static str) {
 pub fn render(
     ctx: &GpuContext,
     scene: &SceneBuffers,
-    frame: &GpuFrame,
+    frame: &FrameParams,
     mode: RenderMode,
     key: FeatureKey,
     progress: &dyn Fn(u64, u64),
@@ -69,7 +69,7 @@ pub fn render(
 pub fn render_region(
     ctx: &GpuContext,
     scene: &SceneBuffers,
-    frame: &GpuFrame,
+    frame: &FrameParams,
     mode: RenderMode,
     key: FeatureKey,
     region: Region,
@@ -88,7 +88,7 @@ pub fn render_region(
 pub fn render_tiles(
     ctx: &GpuContext,
     scene: &SceneBuffers,
-    frame: &GpuFrame,
+    frame: &FrameParams,
     mode: RenderMode,
     key: FeatureKey,
     region: Region,
@@ -137,7 +137,7 @@ pub fn render_tiles(
         let band = Band { width: w, first_col: region.x0, first_row: row0, rows, tile: TILE };
         for s in 0..frame.spp {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
-            let pass_frame = GpuFrame { sample_base: frame.sample_base + s, ..*frame };
+            let pass_frame = FrameParams { sample_base: frame.sample_base + s, ..*frame };
             let accumulate = s > 0;
             let n_tiles = band.tile_count();
             record_pass(
@@ -192,7 +192,7 @@ pub fn render_tiles(
 /// [`GpuContext::path_kernels`] picks for the device.
 pub struct PathAccumulator {
     ctx: Arc<GpuContext>,
-    frame: GpuFrame,
+    frame: FrameParams,
     kernels: AccumulatorKernels,
     samples: u32,
 }
@@ -207,7 +207,7 @@ impl PathAccumulator {
     /// the sums for `frame` (whole image; its `spp` and `sample_base` are ignored), with the
     /// kernels this device runs best. Fails, before allocating, when the image does not fit one
     /// storage binding.
-    pub fn new(ctx: Arc<GpuContext>, scene: SceneBuffers, frame: GpuFrame) -> Result<Self, GpuError> {
+    pub fn new(ctx: Arc<GpuContext>, scene: SceneBuffers, frame: FrameParams) -> Result<Self, GpuError> {
         let kernels = ctx.path_kernels()?;
         Self::with_kernels(ctx, scene, frame, kernels)
     }
@@ -216,7 +216,7 @@ impl PathAccumulator {
     pub fn with_kernels(
         ctx: Arc<GpuContext>,
         scene: SceneBuffers,
-        frame: GpuFrame,
+        frame: FrameParams,
         kernels: PathKernels,
     ) -> Result<Self, GpuError> {
         let bytes = frame.width as u64 * frame.height as u64 * PIXEL_BYTES;
@@ -264,7 +264,7 @@ impl PathAccumulator {
                 let band = Band::whole(self.frame.width, self.frame.height, TILE);
                 for k in 0..n {
                     let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-                    let frame = GpuFrame { sample_base: self.samples + k, ..self.frame };
+                    let frame = FrameParams { sample_base: self.samples + k, ..self.frame };
                     record_pass(
                         &self.ctx,
                         &mut enc,
@@ -387,7 +387,7 @@ pub fn record_pass(
     scene: &SceneBuffers,
     pipeline: &wgpu::ComputePipeline,
     output: &wgpu::BindGroup,
-    frame: &GpuFrame,
+    frame: &FrameParams,
     band: &Band,
     tiles: std::ops::Range<u32>,
     accumulate: bool,
@@ -396,7 +396,7 @@ pub fn record_pass(
     let mut n = 0u32;
     for i in tiles.start..tiles.end.min(band.tile_count()) {
         let (origin, size) = band.tile_rect(i);
-        let tile = GpuFrame {
+        let tile = FrameParams {
             tile_origin: origin,
             tile_size: size,
             spp: 1,
@@ -423,7 +423,7 @@ pub fn record_pass(
 /// Records into `enc` a copy of `frame` into the scene's frame buffer, so that the dispatches
 /// recorded after it (until the next such copy) read it: each tile or pass needs its own frame,
 /// in command order (a queue write would land before the whole submission).
-pub fn stage_frame(ctx: &GpuContext, enc: &mut wgpu::CommandEncoder, scene: &SceneBuffers, frame: &GpuFrame) {
+pub fn stage_frame(ctx: &GpuContext, enc: &mut wgpu::CommandEncoder, scene: &SceneBuffers, frame: &FrameParams) {
     let staging = wgpu::util::DeviceExt::create_buffer_init(
         &ctx.device,
         &wgpu::util::BufferInitDescriptor {
@@ -432,7 +432,7 @@ pub fn stage_frame(ctx: &GpuContext, enc: &mut wgpu::CommandEncoder, scene: &Sce
             usage: wgpu::BufferUsages::COPY_SRC,
         },
     );
-    enc.copy_buffer_to_buffer(&staging, 0, &scene.frame, 0, std::mem::size_of::<GpuFrame>() as u64);
+    enc.copy_buffer_to_buffer(&staging, 0, &scene.frame, 0, std::mem::size_of::<FrameParams>() as u64);
 }
 
 /// Timestamp queries around each dispatch of one submission.

@@ -7,8 +7,9 @@ use naga_oil::compose::{
 };
 use std::collections::HashMap;
 
-use crate::gpu_types::{ENV_MAP, GpuScene, LIGHT_DIRECTIONAL, LIGHT_POINT};
-use crate::scene::MaterialKind;
+use crate::gpu_types::{ENV_MAP, FlatScene, LIGHT_DIRECTIONAL, LIGHT_POINT};
+use crate::primitives::Primitives;
+use crate::scene::{Light, MaterialKind, Scene};
 
 /// The shared modules, in import order (each may import only those before it).
 pub const MODULES: &[(&str, &str)] = &[
@@ -115,7 +116,41 @@ impl FeatureKey {
     /// Scenes with at most this many bounded primitives test them all instead of walking a BVH.
     pub const BRUTE_FORCE_MAX: usize = 8;
 
-    pub fn for_scene(g: &GpuScene) -> FeatureKey {
+    /// The key of `scene`, whose primitives are `prims`, read from the scene itself: what
+    /// [`FeatureKey::for_scene`] gives for its flattened buffers, without building a BVH or
+    /// packing textures (the viewer keys its shader by the whole scene while objects are
+    /// hidden).
+    pub fn of_scene(scene: &Scene, prims: &Primitives<f32>) -> FeatureKey {
+        let mut k = 0;
+        let mut set = |cond: bool, flag: u32| {
+            if cond {
+                k |= flag
+            }
+        };
+        set(!prims.spheres.is_empty(), Self::SPHERES);
+        set(!prims.cylinders.is_empty(), Self::CYLINDERS);
+        set(!prims.triangles.is_empty(), Self::TRIANGLES);
+        set(!prims.planes.is_empty(), Self::PLANES);
+        set(prims.bounded_count() > Self::BRUTE_FORCE_MAX, Self::BVH);
+        // Emissive objects light Whitted renders through point lights that stand in for them.
+        let point = |l: &Light| matches!(l, Light::Point { .. });
+        set(
+            scene.lights.iter().any(point) || !crate::render::flatten::stand_in_lights(scene).is_empty(),
+            Self::POINT_LIGHTS,
+        );
+        set(scene.lights.iter().any(|l| matches!(l, Light::Directional { .. })), Self::DIRECTIONAL_LIGHTS);
+        let has = |m: MaterialKind| scene.materials.iter().any(|x| x.kind == m);
+        set(has(MaterialKind::Mirror), Self::MIRROR);
+        set(has(MaterialKind::Dielectric), Self::DIELECTRIC);
+        set(has(MaterialKind::Emissive), Self::EMISSIVE);
+        set(scene.materials.iter().any(|m| m.color_texture.is_some() || m.radiance_texture.is_some()), Self::TEXTURES);
+        set(scene.environment.is_some(), Self::ENVIRONMENT);
+        set(scene.environment.as_ref().is_some_and(|e| e.map.is_some()), Self::ENV_MAP);
+        FeatureKey(k)
+    }
+
+    /// The key of a flattened scene: the features its buffers hold.
+    pub fn for_scene(g: &FlatScene) -> FeatureKey {
         let mut k = 0;
         let mut set = |cond: bool, flag: u32| {
             if cond {
@@ -315,6 +350,30 @@ mod tests {
         assert!(failures.is_empty(), "{} variants fail, first: {}", failures.len(), failures[0]);
     }
 
+    /// The key read from a scene equals the key of its flattened buffers, for every shipped
+    /// scene and for the viewer's way of keying a scene while objects are hidden.
+    #[test]
+    fn the_key_of_a_scene_is_the_key_of_its_buffers() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+        let mut seen = 0;
+        for e in std::fs::read_dir(&dir).unwrap() {
+            let path = e.unwrap().path();
+            if path.extension().is_none_or(|x| x != "toml") {
+                continue;
+            }
+            let scene = crate::scene::Scene::load(&path).unwrap();
+            let prep = crate::render::Prepared::new(scene.clone());
+            assert_eq!(
+                FeatureKey::of_scene(&scene, &prep.prims),
+                FeatureKey::for_scene(&prep.gpu),
+                "{}",
+                path.display()
+            );
+            seen += 1;
+        }
+        assert!(seen >= 8, "only {seen} scenes");
+    }
+
     #[test]
     fn a_sphere_only_shader_contains_no_other_primitive_code() {
         let key = FeatureKey(FeatureKey::SPHERES | FeatureKey::POINT_LIGHTS);
@@ -437,7 +496,7 @@ mod tests {
         let expected = [
             layout!(
                 "Frame",
-                GpuFrame,
+                FrameParams,
                 [
                     eye,
                     width,
@@ -527,7 +586,7 @@ mod tests {
     /// The Rust struct whose layout WGSL struct `name` shares.
     fn rust_struct_of(name: &str) -> &'static str {
         match name {
-            "Frame" => "GpuFrame",
+            "Frame" => "FrameParams",
             "Sphere" => "GpuSphere",
             "Cylinder" => "GpuCylinder",
             "Plane" => "GpuPlane",

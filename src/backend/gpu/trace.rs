@@ -3,7 +3,7 @@
 
 use super::{GpuContext, GpuError, Program, SceneBuffers};
 use crate::geometry::Part;
-use crate::gpu_types::{GpuFrame, GpuQueryHit, GpuQueryRay, QUERY_ENTER, QUERY_FOUND};
+use crate::gpu_types::{FrameParams, GpuQueryHit, GpuQueryRay, QUERY_ENTER, QUERY_FOUND};
 use crate::math::V3;
 use crate::primitives::{Hit, PrimRef, Tag};
 use crate::query::RayQuery;
@@ -47,7 +47,7 @@ pub fn trace(
     let first = ctx.pipeline(Program::Trace, key, entry)?;
     let write_all = if all { Some(ctx.pipeline(Program::Trace, key, "trace_all")?) } else { None };
     // The trace program reads no frame fields, but the frame buffer must hold valid data.
-    ctx.queue.write_buffer(&scene.frame, 0, bytemuck::bytes_of(&GpuFrame::default()));
+    ctx.queue.write_buffer(&scene.frame, 0, bytemuck::bytes_of(&FrameParams::default()));
     let limit = ctx.max_binding_bytes();
     let max_batch =
         (limit / HIT_BYTES).min(ctx.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP).max(1) as usize;
@@ -149,7 +149,7 @@ pub fn trace_spawn(
     pairs: &[(crate::math::Ray<f32>, V3<f32>)],
 ) -> Result<Vec<crate::backend::SpawnHits>, GpuError> {
     let pipe = ctx.pipeline(Program::Trace, scene.key, "trace_spawn")?;
-    ctx.queue.write_buffer(&scene.frame, 0, bytemuck::bytes_of(&GpuFrame::default()));
+    ctx.queue.write_buffer(&scene.frame, 0, bytemuck::bytes_of(&FrameParams::default()));
     let max_pairs = (ctx.max_binding_bytes() / (2 * HIT_BYTES))
         .min(ctx.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP)
         .max(1) as usize;

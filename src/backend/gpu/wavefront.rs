@@ -10,7 +10,7 @@
 
 use super::render::{RenderStats, Timer, stage_frame};
 use super::{CachedPipeline, FeatureKey, GpuContext, GpuError, Program, SceneBuffers};
-use crate::gpu_types::{FRAME_ACCUMULATE, GpuFrame};
+use crate::gpu_types::{FRAME_ACCUMULATE, FrameParams};
 use crate::image::{Image, Region};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -62,7 +62,7 @@ const PATH_BYTES: [(&str, u64); 6] =
 /// of the image (every method takes the context the tracer was made with).
 pub struct Wavefront {
     scene: SceneBuffers,
-    frame: GpuFrame,
+    frame: FrameParams,
     /// The pixels rendered: the whole image, or a part of a split render.
     region: Region,
     pipelines: Vec<Arc<CachedPipeline>>,
@@ -84,7 +84,7 @@ impl Wavefront {
     /// image; its `spp` and `sample_base` are ignored) in bands of as many rows as one storage
     /// binding holds. Fails, before allocating, where a single row does not fit or the device
     /// binds too few storage buffers.
-    pub fn new(ctx: &GpuContext, scene: SceneBuffers, key: FeatureKey, frame: GpuFrame) -> Result<Self, GpuError> {
+    pub fn new(ctx: &GpuContext, scene: SceneBuffers, key: FeatureKey, frame: FrameParams) -> Result<Self, GpuError> {
         Self::for_region(ctx, scene, key, frame, Region::whole(frame.width, frame.height))
     }
 
@@ -94,7 +94,7 @@ impl Wavefront {
         ctx: &GpuContext,
         scene: SceneBuffers,
         key: FeatureKey,
-        frame: GpuFrame,
+        frame: FrameParams,
         region: Region,
     ) -> Result<Self, GpuError> {
         assert!(region.fits(frame.width, frame.height), "region {region} of a {}x{} image", frame.width, frame.height);
@@ -186,7 +186,7 @@ impl Wavefront {
     ) -> Vec<usize> {
         let w = self.region.width();
         let n = w * rows;
-        let band = GpuFrame {
+        let band = FrameParams {
             tile_origin: [self.region.x0, first_row],
             tile_size: [w, rows],
             spp: 1,

@@ -15,7 +15,7 @@ pub use spawn::*;
 use super::{Row, Stats, Variant, oracle, rel_err, textbook, ulps};
 use crate::accel::Bvh;
 use crate::backend::gpu::{GpuContext, GpuError, SceneBuffers};
-use crate::gpu_types::GpuScene;
+use crate::gpu_types::FlatScene;
 use crate::math::{Ray, V3};
 use crate::primitives::Primitives;
 use crate::query::RayQuery;
@@ -70,7 +70,7 @@ fn upload(ctx: &GpuContext, prims: &Primitives<f32>) -> Result<SceneBuffers, Gpu
         environment: None,
         warnings: Vec::new(),
     };
-    SceneBuffers::upload(ctx, &GpuScene::new(&scene, prims, &Bvh::build(prims)))
+    SceneBuffers::upload(ctx, &FlatScene::new(&scene, prims, &Bvh::build(prims)))
 }
 
 fn query(r: &Ray<f32>) -> RayQuery {

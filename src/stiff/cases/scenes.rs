@@ -128,7 +128,7 @@ pub fn acne_and_holes(reference: &crate::image::Image, test: &crate::image::Imag
 fn render_on(
     variant: Variant,
     prep: &crate::render::Prepared,
-    frame: &crate::gpu_types::GpuFrame,
+    frame: &crate::gpu_types::FrameParams,
     opt: &Options,
 ) -> Result<Option<crate::image::Image>, GpuError> {
     Ok(match variant {
