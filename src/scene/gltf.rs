@@ -13,6 +13,10 @@
 //! vertices (with their texture coordinates) are swapped, so front faces stay front faces and
 //! the image is the one a glTF viewer shows, not its mirror image. A model authored facing +z
 //! (glTF's "front") then faces −z, towards a strahl camera at −z looking along +z.
+//!
+//! One file of some 860 lines: the import is one walk over the document (nodes, meshes,
+//! materials, textures, cameras, lights) that threads one state and one kind of located error
+//! (the glTF path) through every part; split, that state would cross files at every step.
 
 use super::mesh::Transform;
 use super::texture::{ImageKind, Texture, Wrap};
