@@ -51,7 +51,7 @@ fn trace_nearest(@builtin(global_invocation_id) gid: vec3<u32>) {
     let q = rays[i];
     let best = nearest_hit(q.origin, q.dir, q.tmin, q.tmax);
     if best.found {
-        hits[i] = make_hit(best.prim, q.origin, q.dir, best.t, best.part);
+        hits[i] = make_hit(best.prim_ref, q.origin, q.dir, best.t, best.part);
     } else {
         hits[i] = QueryHit(vec3<f32>(0.0), 0.0, 0u, 0u, 0u, 0u);
     }
@@ -76,13 +76,13 @@ fn trace_spawn(@builtin(global_invocation_id) gid: vec3<u32>) {
         hits[2u * i + 1u] = none;
         return;
     }
-    let h = make_hit(first.prim, q.origin, q.dir, first.t, first.part);
+    let h = make_hit(first.prim_ref, q.origin, q.dir, first.t, first.part);
     hits[2u * i] = h;
     let side = select(-h.normal, h.normal, dot(dir2, h.normal) >= 0.0);
     let o2 = spawn_origin(q.origin, q.dir, first.t, side);
     let second = nearest_hit(o2, dir2, 0.0, F32_MAX);
     if second.found {
-        hits[2u * i + 1u] = make_hit(second.prim, o2, dir2, second.t, second.part);
+        hits[2u * i + 1u] = make_hit(second.prim_ref, o2, dir2, second.t, second.part);
     } else {
         hits[2u * i + 1u] = none;
     }

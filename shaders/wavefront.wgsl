@@ -21,7 +21,7 @@
 struct WfHit {
     normal: vec3<f32>,
     t: f32,
-    prim: u32,
+    prim_ref: u32,
     part: u32,
     // 1: found, 2: kept (normal and material are set).
     flags: u32,
@@ -85,7 +85,7 @@ fn wf_extend(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = queue_in[gid.x];
     let hit = nearest_hit(paths[p].o, paths[p].d, 0.0, F32_MAX);
     let flags = select(0u, 1u, hit.found) | select(0u, 2u, hit.kept);
-    hits[p] = WfHit(hit.normal, hit.t, hit.prim, hit.part, flags, hit.material);
+    hits[p] = WfHit(hit.normal, hit.t, hit.prim_ref, hit.part, flags, hit.material);
 }
 
 // The pending area-light contribution of path p, if its shadow ray reached the light.
@@ -103,7 +103,7 @@ fn wf_shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     var st = paths[p];
     st.sum += take_pending(p);
     let h = hits[p];
-    let hit = Nearest(h.t, h.prim, h.part, (h.flags & 1u) != 0u, (h.flags & 2u) != 0u, h.normal, h.material);
+    let hit = Nearest(h.t, h.prim_ref, h.part, (h.flags & 1u) != 0u, (h.flags & 2u) != 0u, h.normal, h.material);
     var nee: NeeRay;
     let more = shade_vertex(&st, hit, &nee);
     paths[p] = st;

@@ -16,7 +16,7 @@ pub struct GpuSphere {
     pub center: [f32; 3],
     pub radius: f32,
     pub object: u32,
-    pub prim: u32,
+    pub face: u32,
     pub material: u32,
     pub _pad: u32,
 }
@@ -32,7 +32,7 @@ pub struct GpuCylinder {
     /// 1: closed by end caps; 0: open tube.
     pub caps: u32,
     pub object: u32,
-    pub prim: u32,
+    pub face: u32,
     pub material: u32,
     pub _pad: u32,
 }
@@ -52,7 +52,7 @@ pub struct GpuTriangle {
     pub va: [f32; 3],
     pub object: u32,
     pub vb: [f32; 3],
-    pub prim: u32,
+    pub face: u32,
     pub vc: [f32; 3],
     pub material: u32,
 }
@@ -109,7 +109,7 @@ pub struct GpuLight {
 /// area lights); path mode samples the object itself and skips it.
 pub const LIGHT_STAND_IN: u32 = 1;
 
-/// Emitter kind: an emissive triangle or sphere, `prim` its [`crate::primitives::PrimRef`]
+/// Emitter kind: an emissive triangle or sphere, `source` its [`crate::primitives::PrimRef`]
 /// (the only kind: point and directional lights are evaluated at every vertex, not chosen).
 pub const EMITTER_AREA: u32 = 0;
 
@@ -118,7 +118,7 @@ pub const EMITTER_AREA: u32 = 0;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuEmitter {
-    pub prim: u32,
+    pub source: u32,
     /// [`EMITTER_AREA`].
     pub kind: u32,
     /// Σ pdf of this emitter and those before it (the last is 1).
@@ -315,7 +315,7 @@ pub struct GpuQueryHit {
     pub normal: [f32; 3],
     pub t: f32,
     pub object: u32,
-    pub prim: u32,
+    pub face: u32,
     /// The [`crate::primitives::PrimRef`] hit (orders hits at equal t).
     pub prim_ref: u32,
     /// [`QUERY_FOUND`] | [`QUERY_ENTER`] | part << 8.

@@ -14,8 +14,9 @@ use crate::scene::{Geometry, Scene};
 pub struct Tag {
     /// Index in the scene's `[[objects]]`.
     pub object: u32,
-    /// Triangle index inside a polygon or mesh, else 0.
-    pub prim: u32,
+    /// Face: the triangle's index inside its polygon or mesh, else 0 (the `prim` column of
+    /// `strahl trace`'s output).
+    pub face: u32,
     pub material: u32,
 }
 
@@ -64,7 +65,7 @@ pub struct Hit<R> {
     pub t: R,
     /// Unit geometric normal of the front face (outward for solids).
     pub normal: V3<R>,
-    pub prim: PrimRef,
+    pub prim_ref: PrimRef,
     pub part: Part,
     pub tag: Tag,
     /// The ray enters a solid or meets a surface's front face (d·n < 0).
@@ -75,14 +76,14 @@ pub struct Hit<R> {
 #[derive(Clone, Copy, Debug)]
 pub struct Nearest<R> {
     pub t: R,
-    pub prim: PrimRef,
+    pub prim_ref: PrimRef,
     pub part: Part,
     pub found: bool,
 }
 
 impl<R: Real> Nearest<R> {
     pub fn new(tmax: R) -> Self {
-        Self { t: tmax, prim: PrimRef(u32::MAX), part: Part::Surface, found: false }
+        Self { t: tmax, prim_ref: PrimRef(u32::MAX), part: Part::Surface, found: false }
     }
     /// Upper bound to pass to `roots`: roots at exactly `t` must still be seen for the tie
     /// rule, so the bound is the next representable value above it.
@@ -93,9 +94,9 @@ impl<R: Real> Nearest<R> {
     /// Keeps the smaller `t`; at equal `t`, the smaller [`PrimRef`].
     #[inline]
     pub fn offer(&mut self, t: R, prim: PrimRef, part: Part) {
-        if t < self.t || (t == self.t && prim < self.prim) {
+        if t < self.t || (t == self.t && prim < self.prim_ref) {
             self.t = t;
-            self.prim = prim;
+            self.prim_ref = prim;
             self.part = part;
             self.found = true;
         }
@@ -130,7 +131,7 @@ impl<R: Real> Primitives<R> {
             planes: Vec::new(),
         };
         for (i, obj) in scene.objects.iter().enumerate() {
-            let tag = |prim: usize| Tag { object: i as u32, prim: prim as u32, material: obj.material };
+            let tag = |face: usize| Tag { object: i as u32, face: face as u32, material: obj.material };
             match &obj.geometry {
                 Geometry::Sphere(s) => p.spheres.push(Tagged { shape: s.cast(), tag: tag(0) }),
                 Geometry::Cylinder(c) => p.cylinders.push(Tagged { shape: c.cast(), tag: tag(0) }),
@@ -229,7 +230,7 @@ impl<R: Real> Primitives<R> {
             PrimKind::Triangle => self.triangles[i].shape.normal(ray, t, part),
             PrimKind::Plane => self.planes[i].shape.normal(ray, t, part),
         };
-        Hit { t, normal, prim: r, part, tag: self.tag(r), enter: ray.dir.dot(normal) < R::ZERO }
+        Hit { t, normal, prim_ref: r, part, tag: self.tag(r), enter: ray.dir.dot(normal) < R::ZERO }
     }
 
     /// Offers every root of `r` below the current best to `best`.
@@ -246,7 +247,7 @@ impl<R: Real> Primitives<R> {
         for r in self.bounded_refs().chain(self.plane_refs()) {
             self.offer_nearest(r, ray, tmin, &mut best);
         }
-        best.found.then(|| self.hit(best.prim, ray, best.t, best.part))
+        best.found.then(|| self.hit(best.prim_ref, ray, best.t, best.part))
     }
 
     /// Every hit in (tmin, tmax) by testing every primitive, sorted by `t` then [`PrimRef`].
@@ -271,7 +272,7 @@ pub fn sort_hits<R: Real>(hits: &mut [Hit<R>]) {
     hits.sort_by(|a, b| {
         a.t.partial_cmp(&b.t)
             .unwrap_or(std::cmp::Ordering::Equal)
-            .then(a.prim.cmp(&b.prim))
+            .then(a.prim_ref.cmp(&b.prim_ref))
             .then((a.part as u8).cmp(&(b.part as u8)))
     });
 }
@@ -296,10 +297,10 @@ mod tests {
         n.offer(3.0, p, Part::Surface);
         assert_eq!(n.search_bound(), 3.0f32.next_up());
         n.offer(3.0, q, Part::Surface);
-        assert_eq!(n.prim, q);
+        assert_eq!(n.prim_ref, q);
         n.offer(3.0, p, Part::Surface);
-        assert_eq!(n.prim, q, "a larger ref at the same t never replaces a smaller one");
+        assert_eq!(n.prim_ref, q, "a larger ref at the same t never replaces a smaller one");
         n.offer(2.5, p, Part::Surface);
-        assert_eq!((n.t, n.prim), (2.5, p));
+        assert_eq!((n.t, n.prim_ref), (2.5, p));
     }
 }

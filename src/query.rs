@@ -194,7 +194,7 @@ pub fn write_hit_rows<R: Real>(out: &mut String, index: usize, ray: &Ray<R>, hit
         let _ = writeln!(
             out,
             "{index},{},{},{},{},{},{},{},{},{},{}",
-            h.t, p.x, p.y, p.z, n.x, n.y, n.z, h.tag.object, h.tag.prim, h.enter as u8
+            h.t, p.x, p.y, p.z, n.x, n.y, n.z, h.tag.object, h.tag.face, h.enter as u8
         );
     }
 }

@@ -48,9 +48,9 @@ fn test_rays(prep: &Prepared, n: usize, seed: u64) -> Vec<RayQuery> {
 
 /// Same primitive, t within a relative 1e-4, normals within 0.3°, same enter flag.
 fn same_hit(a: &Hit<f32>, b: &Hit<f32>) -> bool {
-    a.prim == b.prim
+    a.prim_ref == b.prim_ref
         && a.tag.object == b.tag.object
-        && a.tag.prim == b.tag.prim
+        && a.tag.face == b.tag.face
         && (a.t - b.t).abs() <= 1e-4 * a.t.abs().max(1.0)
         && a.normal.dot(b.normal) > 0.99999
         && a.enter == b.enter
@@ -160,7 +160,7 @@ fn a_ray_from_1e38_gives_the_same_rows_on_both_backends() {
             let want = cpu::trace::<f32>(&scene, &[ray], all);
             let got = trace(&ctx, &buffers, &[ray], all).unwrap();
             let rows = |h: &[Hit<f32>]| -> Vec<_> {
-                h.iter().map(|h| (h.t, h.tag.object, h.tag.prim, h.normal.to_array(), h.enter)).collect()
+                h.iter().map(|h| (h.t, h.tag.object, h.tag.face, h.normal.to_array(), h.enter)).collect()
             };
             assert_eq!(rows(&got[0]), rows(&want[0]), "{name}, all = {all}");
             assert!(!got[0].is_empty(), "{name}: spheres A and B lie on the ray");
@@ -199,7 +199,7 @@ fn a_shared_edge_is_one_hit_on_both_backends() {
         assert!(nw <= 1 && ng <= 1, "ray {i} {:?}: {nw} floor rows on the cpu, {ng} on the gpu", rays[i]);
         assert_eq!(nw, ng, "ray {i} {:?}", rays[i]);
         hits += nw;
-        let prims = |h: &[Hit<f32>]| h.iter().filter(|h| h.tag.object == 4).map(|h| h.tag.prim).collect::<Vec<_>>();
+        let prims = |h: &[Hit<f32>]| h.iter().filter(|h| h.tag.object == 4).map(|h| h.tag.face).collect::<Vec<_>>();
         other_triangle += (prims(w) != prims(g)) as usize;
     }
     eprintln!(

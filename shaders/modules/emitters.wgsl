@@ -97,8 +97,8 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         return none;
     }
     let e = emitters[select_emitter(ux)];
-    let kind = e.prim >> INDEX_BITS;
-    let i = e.prim & INDEX_MASK;
+    let kind = e.source >> INDEX_BITS;
+    let i = e.source & INDEX_MASK;
     var q = vec3<f32>(0.0);
     var n = vec3<f32>(0.0, 0.0, 1.0);
     var material = 0u;

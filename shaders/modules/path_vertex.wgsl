@@ -122,7 +122,7 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
     }
     let untextured = materials[hit_material(hit)];
 #ifdef TEXTURES
-    let m = textured(untextured, hit.prim, o + d * hit.t);
+    let m = textured(untextured, hit.prim_ref, o + d * hit.t);
 #else
     let m = untextured;
 #endif
@@ -133,7 +133,7 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
     if m.kind == MAT_EMISSIVE {
         let cos_l = emitted_cos(m.flags, -dot(d, n));
         if cos_l > 0.0 {
-            let kind = hit.prim >> INDEX_BITS;
+            let kind = hit.prim_ref >> INDEX_BITS;
             let sampled = kind == KIND_TRIANGLE || kind == KIND_SPHERE;
             var w = 1.0;
             if (*p).specular == 0u && sampled {

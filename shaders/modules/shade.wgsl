@@ -149,7 +149,7 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
             continue;
         }
 #ifdef TEXTURES
-        let m = textured(materials[hit_material(hit)], hit.prim, cur.origin + cur.dir * hit.t);
+        let m = textured(materials[hit_material(hit)], hit.prim_ref, cur.origin + cur.dir * hit.t);
 #else
         let m = materials[hit_material(hit)];
 #endif

@@ -47,7 +47,7 @@ const SLAB_GROW: f32 = #{SLAB_GROW};
 
 struct Nearest {
     t: f32,
-    prim: u32,
+    prim_ref: u32,
     part: u32,
     found: bool,
     // Set by the BVH walk for a triangle hit: its front normal (v1 - v0) x (v2 - v0), not
@@ -162,19 +162,19 @@ fn prim_tag(r: u32) -> vec3<u32> {
 #ifdef SPHERES
     if kind == KIND_SPHERE {
         let s = spheres[i];
-        return vec3<u32>(s.object, s.prim, s.material);
+        return vec3<u32>(s.object, s.face, s.material);
     }
 #endif
 #ifdef CYLINDERS
     if kind == KIND_CYLINDER {
         let c = cylinders[i];
-        return vec3<u32>(c.object, c.prim, c.material);
+        return vec3<u32>(c.object, c.face, c.material);
     }
 #endif
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
         let t = triangles[i];
-        return vec3<u32>(t.object, t.prim, t.material);
+        return vec3<u32>(t.object, t.face, t.material);
     }
 #endif
 #ifdef PLANES
@@ -201,9 +201,9 @@ fn offer_nearest(best: ptr<function, Nearest>, r: u32, o: vec3<f32>, d: vec3<f32
 #endif
     let first = prim_first(r, o, d, tmin, search_bound(*best));
     let t = first.x;
-    if t >= 0.0 && (t < (*best).t || (t == (*best).t && r < (*best).prim)) {
+    if t >= 0.0 && (t < (*best).t || (t == (*best).t && r < (*best).prim_ref)) {
         (*best).t = t;
-        (*best).prim = r;
+        (*best).prim_ref = r;
         (*best).part = u32(first.y);
         (*best).found = true;
         (*best).kept = false;
@@ -215,7 +215,7 @@ fn hit_normal(hit: Nearest, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     if hit.kept {
         return normalize(hit.normal);
     }
-    return prim_normal(hit.prim, o, d, hit.t, hit.part);
+    return prim_normal(hit.prim_ref, o, d, hit.t, hit.part);
 }
 
 // Material of the nearest hit.
@@ -223,7 +223,7 @@ fn hit_material(hit: Nearest) -> u32 {
     if hit.kept {
         return hit.material;
     }
-    return prim_tag(hit.prim).z;
+    return prim_tag(hit.prim_ref).z;
 }
 
 #ifdef BVH
@@ -369,9 +369,9 @@ fn offer_triangles(best: ptr<function, Nearest>, first: u32, end: u32, o: vec3<f
         let tri = fetch_leaf_triangle(k);
         let r = prim_ref(KIND_TRIANGLE, tri.index);
         let t = vertices_intersect(tri.va, tri.vb, tri.vc, o, sh, tmin, search_bound(*best));
-        if t >= 0.0 && (t < (*best).t || (t == (*best).t && r < (*best).prim)) {
+        if t >= 0.0 && (t < (*best).t || (t == (*best).t && r < (*best).prim_ref)) {
             (*best).t = t;
-            (*best).prim = r;
+            (*best).prim_ref = r;
             (*best).part = PART_SURFACE;
             (*best).found = true;
             (*best).kept = true;

@@ -31,7 +31,7 @@ struct Sphere {
     center: vec3<f32>,
     radius: f32,
     object: u32,
-    prim: u32,
+    face: u32,
     material: u32,
     pad: u32,
 }
@@ -43,7 +43,7 @@ struct Cylinder {
     pb: vec3<f32>,
     caps: u32,
     object: u32,
-    prim: u32,
+    face: u32,
     material: u32,
     pad: u32,
 }
@@ -59,7 +59,7 @@ struct Triangle {
     va: vec3<f32>,
     object: u32,
     vb: vec3<f32>,
-    prim: u32,
+    face: u32,
     vc: vec3<f32>,
     material: u32,
 }
@@ -137,7 +137,7 @@ struct Light {
 }
 
 struct Emitter {
-    prim: u32,
+    source: u32,
     kind: u32,
     cdf: f32,
     pdf: f32,
@@ -154,7 +154,7 @@ struct QueryHit {
     normal: vec3<f32>,
     t: f32,
     object: u32,
-    prim: u32,
+    face: u32,
     prim_ref: u32,
     flags: u32,
 }

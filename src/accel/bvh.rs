@@ -574,7 +574,7 @@ mod tests {
         for i in 0..n {
             let c = rng.in_cube(50.0);
             let tri = Triangle { v: [0, 1, 2].map(|_| c + rng.in_cube(1.0)) };
-            p.triangles.push(Tagged { shape: tri.cast(), tag: Tag { object: 0, prim: i as u32, material: 0 } });
+            p.triangles.push(Tagged { shape: tri.cast(), tag: Tag { object: 0, face: i as u32, material: 0 } });
         }
         p
     }

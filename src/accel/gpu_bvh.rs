@@ -332,7 +332,7 @@ pub fn nearest(bvh: &GpuBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32,
         best_cell.set(b);
     });
     best = best_cell.get();
-    best.found.then(|| prims.hit(best.prim, ray, best.t, best.part))
+    best.found.then(|| prims.hit(best.prim_ref, ray, best.t, best.part))
 }
 
 /// Whether anything lies in (tmin, tmax) along the ray: the walk of [`nearest`] ended at the
@@ -404,7 +404,7 @@ mod tests {
         let mut p = Primitives::<f64>::default();
         for i in 0..n {
             let c = rng.in_cube(20.0);
-            let tag = Tag { object: i as u32, prim: 0, material: i as u32 % 7 };
+            let tag = Tag { object: i as u32, face: 0, material: i as u32 % 7 };
             match i % 5 {
                 0 => p.spheres.push(Tagged { shape: Sphere { center: c, radius: 0.4 }, tag }),
                 1 => p.cylinders.push(Tagged {
@@ -489,14 +489,14 @@ mod tests {
         for n in [3usize, 100] {
             let mut p = Primitives::<f32>::default();
             for i in 0..n {
-                let tag = Tag { object: i as u32, prim: 0, material: 0 };
+                let tag = Tag { object: i as u32, face: 0, material: 0 };
                 p.spheres.push(Tagged { shape: Sphere { center: V3::new(0.0, 0.0, 5.0), radius: 1.0 }, tag });
             }
             let bvh = Bvh::build(&p);
             let g = GpuBvh::collapse(&bvh, &p).unwrap();
             let ray = Ray::new(V3::new(0.0, 0.0, 0.0), V3::new(0.0, 0.0, 1.0));
             let hit = nearest(&g, &p, &ray, 0.0, f32::INFINITY).expect("hits");
-            assert_eq!((hit.t, hit.prim), (4.0, PrimRef::new(PrimKind::Sphere, 0)));
+            assert_eq!((hit.t, hit.prim_ref), (4.0, PrimRef::new(PrimKind::Sphere, 0)));
             assert_eq!(all(&g, &p, &ray, 0.0, f32::INFINITY).len(), 2 * n);
         }
     }

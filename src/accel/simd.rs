@@ -188,7 +188,7 @@ impl Kernels for Scalar {
     unsafe fn triangles(block: &LeafBlock, r: &RayPre, tmin: f32, tmax: f32, t: &mut [f32; LANES]) -> u32 {
         let mut mask = 0;
         for (lane, t_out) in t.iter_mut().enumerate() {
-            if !is_triangle(block.prim[lane]) {
+            if !is_triangle(block.prim_ref[lane]) {
                 continue;
             }
             let v = |k: usize| V3::new(block.v[k][0][lane], block.v[k][1][lane], block.v[k][2][lane]);

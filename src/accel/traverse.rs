@@ -116,7 +116,7 @@ pub fn nearest<R: Real>(bvh: &Bvh, prims: &Primitives<R>, ray: &Ray<R>, tmin: R,
         best_cell.set(b);
     });
     best = best_cell.get();
-    best.found.then(|| prims.hit(best.prim, ray, best.t, best.part))
+    best.found.then(|| prims.hit(best.prim_ref, ray, best.t, best.part))
 }
 
 /// Every hit in (tmin, tmax), sorted as [`Primitives::all_brute`] sorts them.

@@ -80,11 +80,11 @@ pub struct LeafBlock {
     /// `v[k][a][lane]`: coordinate a of vertex k of the lane's triangle.
     pub v: [[[f32; LANES]; 3]; 3],
     /// Each lane's [`PrimRef`], or [`EMPTY_PRIM`].
-    pub prim: [u32; LANES],
+    pub prim_ref: [u32; LANES],
 }
 
 impl LeafBlock {
-    const EMPTY: LeafBlock = LeafBlock { v: [[[0.0; LANES]; 3]; 3], prim: [EMPTY_PRIM; LANES] };
+    const EMPTY: LeafBlock = LeafBlock { v: [[[0.0; LANES]; 3]; 3], prim_ref: [EMPTY_PRIM; LANES] };
 }
 
 /// The decoded leaf word: blocks `first .. first + count`, and whether any lane is not a
@@ -95,7 +95,7 @@ pub fn leaf_blocks(word: u32) -> (usize, usize, bool) {
 }
 
 /// Tags of consecutive triangles: triangle `first + k` (until the next run) has object
-/// `object`, triangle index `prim + k` and material `material`. A mesh is one run, so the
+/// `object`, face `face + k` and material `material`. A mesh is one run, so the
 /// walk finds a hit's tag in this short table instead of loading the triangle again.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct TagRun {
@@ -157,7 +157,7 @@ impl WideBvh {
     #[inline]
     pub fn triangle_tag(&self, index: usize) -> Tag {
         let r = &self.runs[self.runs.partition_point(|r| r.first as usize <= index) - 1];
-        Tag { prim: r.tag.prim + (index as u32 - r.first), ..r.tag }
+        Tag { face: r.tag.face + (index as u32 - r.first), ..r.tag }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -199,7 +199,7 @@ impl WideBvh {
 
     /// Used lanes over all lanes of the leaf blocks.
     pub fn block_fill(&self) -> f64 {
-        let used = self.blocks.iter().flat_map(|b| b.prim).filter(|&p| p != EMPTY_PRIM).count();
+        let used = self.blocks.iter().flat_map(|b| b.prim_ref).filter(|&p| p != EMPTY_PRIM).count();
         used as f64 / (self.blocks.len() * LANES).max(1) as f64
     }
 }
@@ -212,7 +212,7 @@ fn tag_runs(prims: &Primitives<f32>) -> Vec<TagRun> {
             let k = i as u32 - r.first;
             r.tag.object == t.tag.object
                 && r.tag.material == t.tag.material
-                && r.tag.prim.checked_add(k) == Some(t.tag.prim)
+                && r.tag.face.checked_add(k) == Some(t.tag.face)
         });
         if !continues {
             runs.push(TagRun { first: i as u32, tag: t.tag });
@@ -225,7 +225,7 @@ fn tag_runs(prims: &Primitives<f32>) -> Vec<TagRun> {
 fn block(refs: &[PrimRef], prims: &Primitives<f32>) -> LeafBlock {
     let mut b = LeafBlock::EMPTY;
     for (lane, r) in refs.iter().enumerate() {
-        b.prim[lane] = r.0;
+        b.prim_ref[lane] = r.0;
         if r.kind() == PrimKind::Triangle {
             let tri = &prims.triangles[r.index()].shape;
             for k in 0..3 {

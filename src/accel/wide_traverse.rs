@@ -247,18 +247,18 @@ impl<'a> NearestWalk<'a> {
             // SAFETY: as in `step`.
             let mut hits = unsafe { K::triangles(block, &self.pre, self.tmin, bound, &mut t) };
             if hits != 0 {
-                let before = self.best.prim;
+                let before = self.best.prim_ref;
                 while hits != 0 {
                     let lane = hits.trailing_zeros() as usize;
                     hits &= hits - 1;
-                    self.best.offer(t[lane], PrimRef(block.prim[lane]), Part::Surface);
+                    self.best.offer(t[lane], PrimRef(block.prim_ref[lane]), Part::Surface);
                 }
-                if self.best.prim != before {
+                if self.best.prim_ref != before {
                     self.from_block = Some(block);
                 }
             }
             if other {
-                for &p in &block.prim {
+                for &p in &block.prim_ref {
                     if p != EMPTY_PRIM && !simd::is_triangle(p) {
                         self.prims.offer_nearest(PrimRef(p), &self.pre.ray, self.tmin, &mut self.best);
                     }
@@ -280,17 +280,24 @@ impl<'a> NearestWalk<'a> {
         // A sphere or cylinder found later may have won, even in the same block.
         let lane = self
             .from_block
-            .filter(|_| simd::is_triangle(best.prim.0))
-            .and_then(|b| b.prim.iter().position(|&p| p == best.prim.0).map(|lane| (b, lane)));
+            .filter(|_| simd::is_triangle(best.prim_ref.0))
+            .and_then(|b| b.prim_ref.iter().position(|&p| p == best.prim_ref.0).map(|lane| (b, lane)));
         Some(match lane {
             // The record prims.hit makes, from the copy of the triangle in the block.
             Some((block, lane)) => {
                 let v = |k: usize| V3::new(block.v[k][0][lane], block.v[k][1][lane], block.v[k][2][lane]);
                 let normal = Triangle { v: [v(0), v(1), v(2)] }.normal(ray, best.t, best.part);
-                let tag = self.w.triangle_tag(best.prim.index());
-                Hit { t: best.t, normal, prim: best.prim, part: best.part, tag, enter: ray.dir.dot(normal) < 0.0 }
+                let tag = self.w.triangle_tag(best.prim_ref.index());
+                Hit {
+                    t: best.t,
+                    normal,
+                    prim_ref: best.prim_ref,
+                    part: best.part,
+                    tag,
+                    enter: ray.dir.dot(normal) < 0.0,
+                }
             }
-            _ => self.prims.hit(best.prim, ray, best.t, best.part),
+            _ => self.prims.hit(best.prim_ref, ray, best.t, best.part),
         })
     }
 }
@@ -459,7 +466,7 @@ fn occluded_with<K: Kernels, const NEG: bool>(
                     return true;
                 }
                 if other
-                    && block.prim.iter().any(|&p| {
+                    && block.prim_ref.iter().any(|&p| {
                         p != EMPTY_PRIM && !simd::is_triangle(p) && prims.roots(PrimRef(p), ray, tmin, tmax).len > 0
                     })
                 {
@@ -542,7 +549,7 @@ mod tests {
         let mut quad = |a: V3<f32>, b: V3<f32>, c: V3<f32>, d: V3<f32>| {
             for tri in [[a, b, c], [a, c, d]] {
                 let n = p.triangles.len() as u32;
-                p.triangles.push(Tagged { shape: Triangle { v: tri }, tag: Tag { object: 0, prim: n, material: 0 } });
+                p.triangles.push(Tagged { shape: Triangle { v: tri }, tag: Tag { object: 0, face: n, material: 0 } });
             }
         };
         for i in -4..4 {
@@ -594,7 +601,7 @@ mod tests {
             assert_eq!(nearest_scalar(&w, &p, &ray, 0.0, f32::INFINITY), want, "scalar, ray {i}: {ray:?}");
             assert_eq!(occluded(&w, &p, &ray, 0.0, f32::INFINITY), want.is_some(), "occlusion, ray {i}");
             if let Some(h) = want {
-                assert!(h.prim.index() < p.triangles.len() / 2, "the first copy wins the tie");
+                assert!(h.prim_ref.index() < p.triangles.len() / 2, "the first copy wins the tie");
                 hits += 1;
             }
         }

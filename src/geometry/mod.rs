@@ -142,7 +142,7 @@ pub(crate) mod testutil {
     pub fn mixed_scene(seed: u64) -> Primitives<f32> {
         let mut rng = TestRng(seed);
         let mut p = Primitives::<f64>::default();
-        let tag = |o: usize| Tag { object: o as u32, prim: 0, material: 0 };
+        let tag = |o: usize| Tag { object: o as u32, face: 0, material: 0 };
         for i in 0..300 {
             p.spheres
                 .push(Tagged { shape: Sphere { center: rng.in_cube(50.0), radius: rng.range(0.2, 3.0) }, tag: tag(i) });

@@ -94,7 +94,7 @@ pub fn sample(g: &FlatScene, frame: &FrameParams, p: V3<f32>, u: [f32; 3]) -> Op
         return None;
     }
     let e = &g.emitters[select(&g.emitters[..frame.num_emitters as usize], u0)];
-    let r = PrimRef(e.prim);
+    let r = PrimRef(e.source);
     // Barycentric weights of b and c at the sampled point of a triangle.
     let (mut b1, mut b2) = (0.0f32, 0.0f32);
     let (q, n, material) = match r.kind() {

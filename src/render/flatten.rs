@@ -20,28 +20,28 @@ fn rgb(v: [f64; 3]) -> [f32; 3] {
 impl FlatScene {
     /// Flattens `scene`, whose primitives are `prims` and whose BVH over them is `bvh`.
     pub fn new(scene: &Scene, prims: &Primitives<f32>, bvh: &Bvh) -> Self {
-        let tag = |t: &crate::primitives::Tag| (t.object, t.prim, t.material);
+        let tag = |t: &crate::primitives::Tag| (t.object, t.face, t.material);
         let mut g = Self {
             spheres: prims
                 .spheres
                 .iter()
                 .map(|Tagged { shape: s, tag: t }| {
-                    let (object, prim, material) = tag(t);
-                    GpuSphere { center: s.center.to_array(), radius: s.radius, object, prim, material, _pad: 0 }
+                    let (object, face, material) = tag(t);
+                    GpuSphere { center: s.center.to_array(), radius: s.radius, object, face, material, _pad: 0 }
                 })
                 .collect(),
             cylinders: prims
                 .cylinders
                 .iter()
                 .map(|Tagged { shape: c, tag: t }| {
-                    let (object, prim, material) = tag(t);
+                    let (object, face, material) = tag(t);
                     GpuCylinder {
                         pa: c.p1.to_array(),
                         radius: c.radius,
                         pb: c.p2.to_array(),
                         caps: c.caps as u32,
                         object,
-                        prim,
+                        face,
                         material,
                         _pad: 0,
                     }
@@ -64,7 +64,7 @@ impl FlatScene {
                     va: tri.v[0].to_array(),
                     object: t.object,
                     vb: tri.v[1].to_array(),
-                    prim: t.prim,
+                    face: t.face,
                     vc: tri.v[2].to_array(),
                     material: t.material,
                 })
@@ -236,10 +236,10 @@ pub fn build_emitters(g: &FlatScene) -> (Vec<GpuEmitter>, f32) {
     let emitters = entries
         .into_iter()
         .enumerate()
-        .map(|(k, (prim, kind, w))| {
+        .map(|(k, (source, kind, w))| {
             cum += w;
             let cdf = if k + 1 == n { 1.0 } else { (cum / total) as f32 };
-            GpuEmitter { prim, kind, cdf, pdf: (w / total) as f32 }
+            GpuEmitter { source, kind, cdf, pdf: (w / total) as f32 }
         })
         .collect();
     (emitters, (1.0 / total) as f32)

@@ -117,13 +117,13 @@ pub fn shade_vertex(
         return false;
     };
     let untextured = &g.materials[hit.tag.material as usize];
-    let m = &texture::textured(g, untextured, hit.prim, ray.at(hit.t));
+    let m = &texture::textured(g, untextured, hit.prim_ref, ray.at(hit.t));
     let front = ray.dir.dot(hit.normal) < 0.0;
     let ns = if front { hit.normal } else { -hit.normal };
     if m.kind() == MaterialKind::Emissive {
         let cos_l = emitted_cos(m.flags, -ray.dir.dot(hit.normal));
         if cos_l > 0.0 {
-            let sampled = matches!(hit.prim.kind(), PrimKind::Triangle | PrimKind::Sphere);
+            let sampled = matches!(hit.prim_ref.kind(), PrimKind::Triangle | PrimKind::Sphere);
             let w = if p.specular || !sampled {
                 1.0
             } else {

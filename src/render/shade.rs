@@ -132,7 +132,7 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
             continue;
         };
         let m: &GpuMaterial =
-            &texture::textured(inp.gpu, &inp.gpu.materials[hit.tag.material as usize], hit.prim, ray.at(hit.t));
+            &texture::textured(inp.gpu, &inp.gpu.materials[hit.tag.material as usize], hit.prim_ref, ray.at(hit.t));
         let front = ray.dir.dot(hit.normal) < 0.0;
         let ns = if front { hit.normal } else { -hit.normal };
         let albedo = V3::from_array(m.color);

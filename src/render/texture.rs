@@ -54,7 +54,7 @@ pub fn triangle_uvs(scene: &Scene, prims: &Primitives<f32>) -> Vec<GpuTriangleUv
         .iter()
         .map(|t| match &scene.objects[t.tag.object as usize].geometry {
             Geometry::Mesh { uvs, .. } if !uvs.is_empty() => {
-                let [a, b, c] = uvs[t.tag.prim as usize];
+                let [a, b, c] = uvs[t.tag.face as usize];
                 GpuTriangleUv { a, b, c }
             }
             _ => GpuTriangleUv::default(),

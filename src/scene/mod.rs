@@ -185,7 +185,7 @@ pub enum Geometry {
     Cylinder(Cylinder<f64>),
     Plane(Plane<f64>),
     Triangle(Triangle<f64>),
-    /// A planar, simple polygon and its triangulation (`prim` indexes these triangles).
+    /// A planar, simple polygon and its triangulation (a primitive's `face` indexes these triangles).
     Polygon {
         vertices: Vec<V3<f64>>,
         triangles: Vec<Triangle<f64>>,

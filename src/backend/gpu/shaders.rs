@@ -522,10 +522,10 @@ mod tests {
                     seed
                 ]
             ),
-            layout!("Sphere", GpuSphere, [center, radius, object, prim, material, _pad]),
-            layout!("Cylinder", GpuCylinder, [pa, radius, pb, caps, object, prim, material, _pad]),
+            layout!("Sphere", GpuSphere, [center, radius, object, face, material, _pad]),
+            layout!("Cylinder", GpuCylinder, [pa, radius, pb, caps, object, face, material, _pad]),
             layout!("Plane", GpuPlane, [point, object, normal, material]),
-            layout!("Triangle", GpuTriangle, [va, object, vb, prim, vc, material]),
+            layout!("Triangle", GpuTriangle, [va, object, vb, face, vc, material]),
             layout!("Node", GpuNode, [lo_a, link_a, hi_a, link_b, lo_b, _pad_a, hi_b, _pad_b]),
             layout!("LeafTriangle", GpuLeafTriangle, [va, index, vb, material, vc, _pad]),
             layout!(
@@ -541,9 +541,9 @@ mod tests {
                 [radiance, flags, rot_cos, rot_sin, texture, select_prob, width, height, _pad, sh]
             ),
             layout!("Light", GpuLight, [vector, kind, intensity, flags]),
-            layout!("Emitter", GpuEmitter, [prim, kind, cdf, pdf]),
+            layout!("Emitter", GpuEmitter, [source, kind, cdf, pdf]),
             layout!("QueryRay", GpuQueryRay, [origin, tmin, dir, tmax]),
-            layout!("QueryHit", GpuQueryHit, [normal, t, object, prim, prim_ref, flags]),
+            layout!("QueryHit", GpuQueryHit, [normal, t, object, face, prim_ref, flags]),
         ];
         // Every struct is used by one of these programs in its all-features variant.
         let modules = [

@@ -26,10 +26,10 @@ fn from_gpu(h: &GpuQueryHit) -> Hit<f32> {
     Hit {
         t: h.t,
         normal: V3::from_array(h.normal),
-        prim: PrimRef(h.prim_ref),
+        prim_ref: PrimRef(h.prim_ref),
         part,
         // The material is not part of a query's answer.
-        tag: Tag { object: h.object, prim: h.prim, material: 0 },
+        tag: Tag { object: h.object, face: h.face, material: 0 },
         enter: h.flags & QUERY_ENTER != 0,
     }
 }

@@ -55,7 +55,7 @@ pub fn closed_mesh_leaks(total_rays: usize, opt: &Options, rng: &mut Rng) -> Res
         let mut prims = Primitives::<f32>::default();
         for (i, f) in faces.iter().enumerate() {
             let tri = Triangle { v: f.map(|k| verts[k as usize]) }.cast::<f32>();
-            prims.triangles.push(Tagged { shape: tri, tag: Tag { object: 0, prim: i as u32, material: 0 } });
+            prims.triangles.push(Tagged { shape: tri, tag: Tag { object: 0, face: i as u32, material: 0 } });
         }
         let bvh = Bvh::build(&prims);
         let mut incident: Vec<Vec<u32>> = vec![Vec::new(); verts.len()];
@@ -184,7 +184,7 @@ pub fn thin_triangles(per_kind: usize, rays: usize, opt: &Options, rng: &mut Rng
             _ => [g, g + a * s, g + a * s],
         };
         let tri = Triangle { v }.cast::<f32>();
-        prims.triangles.push(Tagged { shape: tri, tag: Tag { object: k as u32, prim: 0, material: 0 } });
+        prims.triangles.push(Tagged { shape: tri, tag: Tag { object: k as u32, face: 0, material: 0 } });
     }
     let mut ray_list = Vec::new();
     for t in &prims.triangles {
@@ -219,7 +219,7 @@ pub fn thin_triangles(per_kind: usize, rays: usize, opt: &Options, rng: &mut Rng
             Variant::Cpu => {
                 for (_, r) in &ray_list {
                     if let Some(h) = traverse::nearest(&bvh, &prims, r, 0.0, f32::INFINITY) {
-                        add(judge(r, h.prim.index(), h.t, h.normal));
+                        add(judge(r, h.prim_ref.index(), h.t, h.normal));
                     }
                 }
             }
@@ -229,7 +229,7 @@ pub fn thin_triangles(per_kind: usize, rays: usize, opt: &Options, rng: &mut Rng
                 let qs: Vec<RayQuery> = ray_list.iter().map(|(_, r)| query(r)).collect();
                 for ((_, r), h) in ray_list.iter().zip(trace::trace(ctx, &buffers, &qs, false)?) {
                     if let Some(h) = h.first() {
-                        add(judge(r, h.prim.index(), h.t, h.normal));
+                        add(judge(r, h.prim_ref.index(), h.t, h.normal));
                     }
                 }
             }

@@ -22,7 +22,7 @@ pub fn spawn_setup(shapes: usize, rays: usize, rng: &mut Rng) -> SpawnSetup {
     for k in 0..shapes {
         let radius = 10f64.powf(rng.range(-4.0, 4.0));
         let at = rng.cube(1e6);
-        let tag = Tag { object: k as u32, prim: 0, material: 0 };
+        let tag = Tag { object: k as u32, face: 0, material: 0 };
         let prim_ref = if k % 2 == 0 {
             PrimRef::new(PrimKind::Sphere, prims.spheres.len())
         } else {
@@ -112,7 +112,7 @@ fn count_rehits(results: &[crate::backend::SpawnHits], targets: &[(Quadric, Prim
     let mut nan = 0;
     for ((first, second), (_, prim, part)) in results.iter().zip(targets) {
         if let (Some(a), Some(b)) = (first, second) {
-            rehits += (a.prim == *prim && a.part == *part && b.prim == *prim) as usize;
+            rehits += (a.prim_ref == *prim && a.part == *part && b.prim_ref == *prim) as usize;
         }
         for h in [first, second].into_iter().flatten() {
             nan += (!h.t.is_finite() || !h.normal.is_finite()) as usize;
