@@ -473,30 +473,20 @@ impl Cx<'_> {
         let not_a_field = |key: &str, span: Range<usize>| {
             self.at(span, format!("{field}.{key}"), format!("not a field of a {tname} material"))
         };
-        if kind != MaterialKind::Dielectric
-            && let Some(ior) = &d.ior
-        {
-            return Err(not_a_field("ior", ior.span()));
-        }
-        if kind != MaterialKind::Emissive
-            && let Some(r) = &d.radiance
-        {
-            return Err(not_a_field("radiance", r.span()));
-        }
-        if kind != MaterialKind::Emissive
-            && let Some(r) = &d.two_sided
-        {
-            return Err(not_a_field("two_sided", r.span()));
-        }
-        if kind != MaterialKind::Mirror
-            && let Some(r) = &d.roughness
-        {
-            return Err(not_a_field("roughness", r.span()));
-        }
-        if kind != MaterialKind::Emissive
-            && let Some(r) = &d.radiance_texture
-        {
-            return Err(not_a_field("radiance_texture", r.span()));
+        // Keys only one kind of material takes, in the order they are checked.
+        let own_keys = [
+            (MaterialKind::Dielectric, "ior", d.ior.as_ref().map(|v| v.span())),
+            (MaterialKind::Emissive, "radiance", d.radiance.as_ref().map(|v| v.span())),
+            (MaterialKind::Emissive, "two_sided", d.two_sided.as_ref().map(|v| v.span())),
+            (MaterialKind::Mirror, "roughness", d.roughness.as_ref().map(|v| v.span())),
+            (MaterialKind::Emissive, "radiance_texture", d.radiance_texture.as_ref().map(|v| v.span())),
+        ];
+        for (owner, key, span) in own_keys {
+            if kind != owner
+                && let Some(span) = span
+            {
+                return Err(not_a_field(key, span));
+            }
         }
         let color_texture = match &d.texture {
             Some(t) => Some(self.color_texture(t, &format!("{field}.texture"), textures, files)?),
