@@ -7,6 +7,8 @@
 pub mod bvh;
 pub mod gpu_bvh;
 pub mod huge_pages;
+#[cfg(target_arch = "x86_64")]
+pub mod packet;
 pub mod simd;
 pub mod traverse;
 pub mod wide;

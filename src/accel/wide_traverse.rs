@@ -8,6 +8,8 @@
 //! routines compute, bit for bit, so [`nearest`] returns exactly [`Primitives::nearest_brute`]'s
 //! hit: same `t`, same primitive, ties broken by the smaller [`PrimRef`].
 
+#[cfg(target_arch = "x86_64")]
+use super::packet::{self, PACKET};
 use super::simd::{self, Kernels, RayPre, Scalar, widen};
 use super::wide::{EMPTY_PRIM, LANES, LEAF_BIT, LeafBlock, MAX_DEPTH, WIDTH, WideBvh};
 use crate::geometry::Part;
@@ -272,34 +274,38 @@ impl<'a> NearestWalk<'a> {
     /// The hit record of the search's result.
     #[inline(always)]
     fn hit(&self) -> Option<Hit<f32>> {
-        let best = &self.best;
-        if !best.found {
-            return None;
-        }
-        let ray = &self.pre.ray;
-        // A sphere or cylinder found later may have won, even in the same block.
-        let lane = self
-            .from_block
-            .filter(|_| simd::is_triangle(best.prim_ref.0))
-            .and_then(|b| b.prim_ref.iter().position(|&p| p == best.prim_ref.0).map(|lane| (b, lane)));
-        Some(match lane {
-            // The record prims.hit makes, from the copy of the triangle in the block.
-            Some((block, lane)) => {
-                let v = |k: usize| V3::new(block.v[k][0][lane], block.v[k][1][lane], block.v[k][2][lane]);
-                let normal = Triangle { v: [v(0), v(1), v(2)] }.normal(ray, best.t, best.part);
-                let tag = self.w.triangle_tag(best.prim_ref.index());
-                Hit {
-                    t: best.t,
-                    normal,
-                    prim_ref: best.prim_ref,
-                    part: best.part,
-                    tag,
-                    enter: ray.dir.dot(normal) < 0.0,
-                }
-            }
-            _ => self.prims.hit(best.prim_ref, ray, best.t, best.part),
-        })
+        hit_record(self.w, self.prims, &self.pre.ray, &self.best, self.from_block)
     }
+}
+
+/// The hit record of a search's result `best` for `ray`; `from_block`: the leaf block of the
+/// best triangle hit, if the walk kept it (its copy of the triangle gives the normal without
+/// loading the triangle again).
+#[inline(always)]
+pub(super) fn hit_record(
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    ray: &Ray<f32>,
+    best: &Nearest<f32>,
+    from_block: Option<&LeafBlock>,
+) -> Option<Hit<f32>> {
+    if !best.found {
+        return None;
+    }
+    // A sphere or cylinder found later may have won, even in the same block.
+    let lane = from_block
+        .filter(|_| simd::is_triangle(best.prim_ref.0))
+        .and_then(|b| b.prim_ref.iter().position(|&p| p == best.prim_ref.0).map(|lane| (b, lane)));
+    Some(match lane {
+        // The record prims.hit makes, from the copy of the triangle in the block.
+        Some((block, lane)) => {
+            let v = |k: usize| V3::new(block.v[k][0][lane], block.v[k][1][lane], block.v[k][2][lane]);
+            let normal = Triangle { v: [v(0), v(1), v(2)] }.normal(ray, best.t, best.part);
+            let tag = w.triangle_tag(best.prim_ref.index());
+            Hit { t: best.t, normal, prim_ref: best.prim_ref, part: best.part, tag, enter: ray.dir.dot(normal) < 0.0 }
+        }
+        _ => prims.hit(best.prim_ref, ray, best.t, best.part),
+    })
 }
 
 #[inline(always)]
@@ -354,10 +360,27 @@ fn nearest_many_avx2(
     tmax: f32,
     out: &mut [Option<Hit<f32>>],
 ) {
-    if tmin >= 0.0 {
-        nearest_many_with::<simd::Avx2, false>(w, prims, rays, tmin, tmax, out)
-    } else {
-        nearest_many_with::<simd::Avx2, true>(w, prims, rays, tmin, tmax, out)
+    if tmin < 0.0 {
+        return nearest_many_with::<simd::Avx2, true>(w, prims, rays, tmin, tmax, out);
+    }
+    // Groups of coherent rays go through the packet walk; the runs of other groups through
+    // the interleaved one-ray walks.
+    let mut run = 0;
+    for (i, group) in rays.chunks(PACKET).enumerate() {
+        let first = i * PACKET;
+        // Short groups are padded with their last ray, which keeps them coherent.
+        let pre: [RayPre; PACKET] = std::array::from_fn(|k| RayPre::new(&group[k.min(group.len() - 1)]));
+        if packet::coherent(&pre) {
+            if run < first {
+                nearest_many_with::<simd::Avx2, false>(w, prims, &rays[run..first], tmin, tmax, &mut out[run..first]);
+            }
+            // SAFETY: the CPU has AVX2 (this function's feature).
+            unsafe { packet::nearest_packet(w, prims, &pre, group.len(), tmin, tmax, &mut out[first..]) };
+            run = first + group.len();
+        }
+    }
+    if run < rays.len() {
+        nearest_many_with::<simd::Avx2, false>(w, prims, &rays[run..], tmin, tmax, &mut out[run..]);
     }
 }
 
