@@ -16,10 +16,11 @@
 //! so every ray gets exactly the answer of [`super::wide_traverse::nearest`], and so of brute
 //! force: same `t`, same primitive, same tie rule.
 
-use super::simd::{RayPre, is_triangle, widen};
+use super::simd::{is_triangle, widen};
 use super::wide::{EMPTY_CHILD, EMPTY_PRIM, LANES, LEAF_BIT, LeafBlock, MAX_DEPTH, WIDTH, WideBvh, WideNode};
 use super::wide_traverse::hit_record;
 use crate::geometry::Part;
+use crate::math::Ray;
 use crate::primitives::{Hit, Nearest, PrimRef, Primitives};
 use std::arch::x86_64::*;
 use std::mem::MaybeUninit;
@@ -30,13 +31,15 @@ pub const PACKET: usize = 8;
 /// Room for the children a walk defers: at most seven per level.
 const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 
-/// Whether the rays can be walked as one packet: the same near plane on every axis (so one
-/// row of each node serves all lanes) and the same watertight permutation (so one row of
-/// each triangle does). Neighbouring camera rays almost always qualify; random rays almost
-/// never do, and keep the one-ray walk.
-pub fn coherent(pre: &[RayPre]) -> bool {
-    let first = &pre[0];
-    pre.iter().all(|p| p.near == first.near && p.row_k == first.row_k)
+/// Whether the rays (at most [`PACKET`]) can be walked as one packet: the same sign of each
+/// direction component (so one row of each node holds every lane's near plane) and the same
+/// watertight permutation (so one row of each triangle holds every lane's kx, ky, kz
+/// coordinate), and no component so small that the ray counts as parallel to an axis.
+/// Neighbouring camera rays almost always qualify; random rays almost never do, and keep the
+/// one-ray walk.
+pub fn coherent(rays: &[Ray<f32>]) -> bool {
+    // SAFETY: AVX2 is checked first.
+    super::simd::has_avx2() && unsafe { Lanes::new(rays) }.is_some()
 }
 
 /// A deferred child: its word, the lanes that enter it, and their entry distances.
@@ -47,7 +50,8 @@ struct Entry {
     mask: u32,
 }
 
-/// The rays' shared precomputation, one lane per ray.
+/// What [`RayPre`] holds for one ray, for the eight rays of a packet, one lane each, computed
+/// with the same operations (so lane for lane the same values).
 struct Lanes {
     org_near: [__m256; 3],
     org_far: [__m256; 3],
@@ -58,40 +62,87 @@ struct Lanes {
     sy: __m256,
     sz: __m256,
     /// Byte offsets of the near and far rows of a node, and of the kx, ky, kz rows of a
-    /// vertex (equal across lanes: see [`coherent`]).
+    /// vertex, shared by the lanes.
     near: [usize; 3],
     far: [usize; 3],
     row_k: [usize; 3],
 }
 
 impl Lanes {
+    /// The lanes of `rays` (1 to [`PACKET`]; missing lanes repeat the last ray), or `None`
+    /// where they are not [`coherent`].
     #[inline(always)]
-    unsafe fn new(pre: &[RayPre; PACKET]) -> Self {
-        let lane = |f: &dyn Fn(&RayPre) -> f32| {
-            let v: [f32; PACKET] = std::array::from_fn(|i| f(&pre[i]));
-            // SAFETY: eight f32; AVX is present (see `nearest_packet`).
-            unsafe { _mm256_loadu_ps(v.as_ptr()) }
-        };
-        let axes = |f: &dyn Fn(&RayPre, usize) -> f32| std::array::from_fn(|a| lane(&|p| f(p, a)));
-        Self {
-            org_near: axes(&|p, a| p.org_near[a]),
-            org_far: axes(&|p, a| p.org_far[a]),
-            inv: axes(&|p, a| p.inv[a]),
-            inv_far: axes(&|p, a| p.inv_far[a]),
-            org_k: axes(&|p, a| p.org_k[a]),
-            sx: lane(&|p| p.shear.sx),
-            sy: lane(&|p| p.shear.sy),
-            sz: lane(&|p| p.shear.sz),
-            near: pre[0].near,
-            far: pre[0].far,
-            row_k: pre[0].row_k,
+    unsafe fn new(rays: &[Ray<f32>]) -> Option<Self> {
+        debug_assert!(!rays.is_empty() && rays.len() <= PACKET);
+        // SAFETY: AVX2 is present (see `nearest_packet`); rows hold eight f32.
+        unsafe {
+            let mut rows = [[0.0f32; PACKET]; 6];
+            for k in 0..PACKET {
+                let r = &rays[k.min(rays.len() - 1)];
+                (rows[0][k], rows[1][k], rows[2][k]) = (r.origin.x, r.origin.y, r.origin.z);
+                (rows[3][k], rows[4][k], rows[5][k]) = (r.dir.x, r.dir.y, r.dir.z);
+            }
+            let o: [__m256; 3] = std::array::from_fn(|a| _mm256_loadu_ps(rows[a].as_ptr()));
+            let d: [__m256; 3] = std::array::from_fn(|a| _mm256_loadu_ps(rows[3 + a].as_ptr()));
+            let all = |m: __m256| match _mm256_movemask_ps(m) {
+                0 => Some(false),
+                0xff => Some(true),
+                _ => None,
+            };
+            let zero = _mm256_setzero_ps();
+            let m = d.map(|c| _mm256_andnot_ps(_mm256_set1_ps(-0.0), c));
+            // RayPre::new's parallel axes (|d| < TINY) keep the one-ray walk.
+            let tiny = _mm256_set1_ps(super::simd::TINY);
+            if _mm256_movemask_ps(_mm256_or_ps(
+                _mm256_or_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(m[0], tiny), _mm256_cmp_ps::<_CMP_LT_OQ>(m[1], tiny)),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(m[2], tiny),
+            )) != 0
+            {
+                return None;
+            }
+            let neg = [0, 1, 2].map(|a| all(_mm256_cmp_ps::<_CMP_LT_OQ>(d[a], zero)));
+            let [Some(n0), Some(n1), Some(n2)] = neg else { return None };
+            let neg = [n0, n1, n2];
+            // The dominant axis as RayPre::new chooses it, the same in every lane.
+            let ge = |a: __m256, b: __m256| _mm256_cmp_ps::<_CMP_GE_OQ>(a, b);
+            let kz = if all(_mm256_and_ps(ge(m[0], m[1]), ge(m[0], m[2])))? {
+                0
+            } else if all(ge(m[1], m[2]))? {
+                1
+            } else {
+                2
+            };
+            let (mut kx, mut ky) = ([1, 2, 0][kz], [2, 0, 1][kz]);
+            if neg[kz] {
+                std::mem::swap(&mut kx, &mut ky);
+            }
+            let one = _mm256_set1_ps(1.0);
+            let inv = d.map(|c| _mm256_div_ps(one, c));
+            let grow = _mm256_set1_ps(super::simd::far_grow());
+            let sz = _mm256_div_ps(one, d[kz]);
+            const ROW: usize = size_of::<[f32; WIDTH]>();
+            const LANE_ROW: usize = size_of::<[f32; LANES]>();
+            Some(Self {
+                // o + 0 and o − 0: RayPre's origins moved by a shift of 0 (−0 + 0 is +0).
+                org_near: o.map(|c| _mm256_add_ps(c, zero)),
+                org_far: o.map(|c| _mm256_sub_ps(c, zero)),
+                inv,
+                inv_far: inv.map(|c| _mm256_mul_ps(c, grow)),
+                org_k: [o[kx], o[ky], o[kz]],
+                sx: _mm256_mul_ps(d[kx], sz),
+                sy: _mm256_mul_ps(d[ky], sz),
+                sz,
+                near: [0, 1, 2].map(|a| ROW * (2 * a + neg[a] as usize)),
+                far: [0, 1, 2].map(|a| ROW * (2 * a + !neg[a] as usize)),
+                row_k: [kx * LANE_ROW, ky * LANE_ROW, kz * LANE_ROW],
+            })
         }
     }
 }
 
-/// The nearest hits in (tmin, tmax), tmin ≥ 0, of the first `n` rays of `pre` (the others
-/// are padding), into `out[..n]`: for each ray what [`super::wide_traverse::nearest`] returns.
-/// The rays must be [`coherent`].
+/// The nearest hits in (tmin, tmax), tmin ≥ 0, of `rays` (1 to [`PACKET`]) into `out`: for
+/// each ray what [`super::wide_traverse::nearest`] returns. False, and nothing written, where
+/// the rays are not [`coherent`].
 ///
 /// # Safety
 /// The CPU must have AVX2.
@@ -99,36 +150,38 @@ impl Lanes {
 pub unsafe fn nearest_packet(
     w: &WideBvh,
     prims: &Primitives<f32>,
-    pre: &[RayPre; PACKET],
-    n: usize,
+    rays: &[Ray<f32>],
     tmin: f32,
     tmax: f32,
     out: &mut [Option<Hit<f32>>],
-) {
-    debug_assert!(tmin >= 0.0 && n <= PACKET && coherent(pre));
+) -> bool {
+    debug_assert!(tmin >= 0.0 && out.len() == rays.len());
+    // SAFETY: AVX2 is present (this function's contract).
+    let Some(lanes) = (unsafe { Lanes::new(rays) }) else { return false };
     // +0 for −0: the integer form of the box test needs it (see simd::Avx2::boxes).
     let tmin = tmin + 0.0;
     let mut best: [Nearest<f32>; PACKET] = std::array::from_fn(|_| Nearest::new(tmax));
-    for (b, p) in best.iter_mut().zip(pre).take(n) {
+    for (b, ray) in best.iter_mut().zip(rays) {
         for r in prims.plane_refs() {
-            prims.offer_nearest(r, &p.ray, tmin, b);
+            prims.offer_nearest(r, ray, tmin, b);
         }
     }
     let mut from_block: [Option<&LeafBlock>; PACKET] = [None; PACKET];
     if !w.is_empty() {
-        let mut walk = Walk { w, prims, pre, tmin, best: &mut best, from_block: &mut from_block };
-        // SAFETY: AVX2 is present (this function's contract).
-        unsafe { walk.run((1 << n) - 1) };
+        let mut walk = Walk { w, prims, rays, tmin, best: &mut best, from_block: &mut from_block };
+        // SAFETY: as above.
+        unsafe { walk.run(&lanes, (1 << rays.len()) - 1) };
     }
-    for (i, o) in out[..n].iter_mut().enumerate() {
-        *o = hit_record(w, prims, &pre[i].ray, &best[i], from_block[i]);
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = hit_record(w, prims, &rays[i], &best[i], from_block[i]);
     }
+    true
 }
 
 struct Walk<'a, 'b> {
     w: &'a WideBvh,
     prims: &'a Primitives<f32>,
-    pre: &'b [RayPre; PACKET],
+    rays: &'b [Ray<f32>],
     tmin: f32,
     best: &'b mut [Nearest<f32>; PACKET],
     from_block: &'b mut [Option<&'a LeafBlock>; PACKET],
@@ -186,11 +239,10 @@ unsafe fn edge_tie(e: __m256, ex: __m256, ey: __m256) -> __m256 {
 impl<'a> Walk<'a, '_> {
     /// The walk from the root for the lanes of `active`.
     #[inline(always)]
-    unsafe fn run(&mut self, active: u32) {
+    unsafe fn run(&mut self, l: &Lanes, active: u32) {
         // SAFETY: AVX2 is present (see `nearest_packet`); node rows and the stack are read
         // within their bounds.
         unsafe {
-            let l = Lanes::new(self.pre);
             let tmin_v = _mm256_set1_ps(self.tmin);
             let mut bound = [0.0f32; PACKET];
             let mut cull = [0.0f32; PACKET];
@@ -258,7 +310,7 @@ impl<'a> Walk<'a, '_> {
                         continue;
                     }
                 } else {
-                    self.leaf(word, mask, &l, &mut bound, &mut cull);
+                    self.leaf(word, mask, l, &mut bound, &mut cull);
                 }
                 // The deferred child last pushed that some lane still needs: one whose entry
                 // lies within that lane's (possibly shrunk) interval.
@@ -372,7 +424,7 @@ impl<'a> Walk<'a, '_> {
                         while m != 0 {
                             let r = m.trailing_zeros() as usize;
                             m &= m - 1;
-                            self.prims.offer_nearest(PrimRef(p), &self.pre[r].ray, self.tmin, &mut self.best[r]);
+                            self.prims.offer_nearest(PrimRef(p), &self.rays[r], self.tmin, &mut self.best[r]);
                         }
                     }
                 }
@@ -396,7 +448,7 @@ mod tests {
     use crate::accel::wide_traverse::nearest_many;
     use crate::geometry::Triangle;
     use crate::geometry::testutil::mixed_scene;
-    use crate::math::{Ray, V3};
+    use crate::math::V3;
     use crate::primitives::{Tag, Tagged};
 
     /// Pinhole rays from `eye` through a `w`×`h` grid on the plane at `target`, row by row.
@@ -414,12 +466,7 @@ mod tests {
 
     /// How many groups of `PACKET` rays the batch query walks as packets.
     fn packets(rays: &[Ray<f32>]) -> usize {
-        rays.chunks(PACKET)
-            .filter(|g| {
-                let pre: Vec<RayPre> = (0..PACKET).map(|k| RayPre::new(&g[k.min(g.len() - 1)])).collect();
-                coherent(&pre)
-            })
-            .count()
+        rays.chunks(PACKET).filter(|g| coherent(g)).count()
     }
 
     fn check(prims: &Primitives<f32>, rays: &[Ray<f32>], tmin: f32, tmax: f32) -> usize {
@@ -483,9 +530,9 @@ mod tests {
         }
         let copies = prims.triangles.clone();
         prims.triangles.extend(copies);
-        // From (0.5, 0.25, 4) through points half a unit apart: vertices, edge midpoints and
+        // From (0.25, 0.25, 4) through points half a unit apart: vertices, edge midpoints and
         // diagonals' midpoints of the grid, in coherent rows.
-        let eye = V3::new(0.5, 0.25, 4.0);
+        let eye = V3::new(0.25, 0.25, 4.0);
         let mut rays = Vec::new();
         for j in 0..16 {
             for i in 0..16 {

@@ -45,7 +45,7 @@ pub fn widen(t: f32) -> f32 {
 
 /// Direction components below this magnitude count as zero (as in
 /// `traverse::safe_inverse`): the ray runs parallel to that axis.
-const TINY: f32 = 1e-30;
+pub(super) const TINY: f32 = 1e-30;
 /// The inverse used on an axis the ray runs parallel to: infinity, with the sign of the
 /// component (+ for ±0). On that axis the near planes are measured from the origin moved
 /// forward by [`parallel_shift`], the far planes from it moved back, so that no plane lies at

@@ -368,15 +368,13 @@ fn nearest_many_avx2(
     let mut run = 0;
     for (i, group) in rays.chunks(PACKET).enumerate() {
         let first = i * PACKET;
-        // Short groups are padded with their last ray, which keeps them coherent.
-        let pre: [RayPre; PACKET] = std::array::from_fn(|k| RayPre::new(&group[k.min(group.len() - 1)]));
-        if packet::coherent(&pre) {
+        let end = first + group.len();
+        // SAFETY: the CPU has AVX2 (this function's feature).
+        if unsafe { packet::nearest_packet(w, prims, group, tmin, tmax, &mut out[first..end]) } {
             if run < first {
                 nearest_many_with::<simd::Avx2, false>(w, prims, &rays[run..first], tmin, tmax, &mut out[run..first]);
             }
-            // SAFETY: the CPU has AVX2 (this function's feature).
-            unsafe { packet::nearest_packet(w, prims, &pre, group.len(), tmin, tmax, &mut out[first..]) };
-            run = first + group.len();
+            run = end;
         }
     }
     if run < rays.len() {
