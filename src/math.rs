@@ -44,9 +44,10 @@ pub trait Real:
     /// a·b − c·d with the sign of the exact value, whatever the rounding (so that
     /// `diff_of_products(a, b, c, d) == -diff_of_products(c, d, a, b)` in sign, and is zero
     /// exactly when a·b = c·d): the edge functions of the watertight triangle test need this.
-    /// f32: the products are exact in f64, one rounding follows (relative error ≤ 2u).
-    /// f64: Kahan's algorithm with fused multiply-adds (Jeannerod, Louvet & Muller 2013:
-    /// relative error ≤ 2u).
+    /// Kahan's algorithm with fused multiply-adds (Jeannerod, Louvet & Muller 2013: relative
+    /// error ≤ 2u, so the sign is exact), in f32 the very operations of the shaders'
+    /// `diff_of_products` (shaders/modules/triangle.wgsl), so that the CPU mirror's edge
+    /// functions are the GPU's bit for bit.
     fn diff_of_products(a: Self, b: Self, c: Self, d: Self) -> Self;
     /// pbrt's γ(n) = n·u / (1 − n·u), the bound on the relative error of n chained operations.
     fn gamma_bound(n: u32) -> Self {
@@ -97,7 +98,11 @@ macro_rules! impl_real {
         }
     };
 }
-impl_real!(f32, |a: f32, b: f32, c: f32, d: f32| (a as f64 * b as f64 - c as f64 * d as f64) as f32);
+impl_real!(f32, |a: f32, b: f32, c: f32, d: f32| {
+    let cd = c * d;
+    let err = (-c).mul_add(d, cd);
+    a.mul_add(b, -cd) + err
+});
 impl_real!(f64, |a: f64, b: f64, c: f64, d: f64| {
     let cd = c * d;
     let err = (-c).mul_add(d, cd);
@@ -287,7 +292,8 @@ mod tests {
         let (c, d) = (1.0f32, 1.0f32);
         assert_eq!(a * b - c * d, 0.0);
         let dop = f32::diff_of_products(a, b, c, d);
-        assert!(dop < 0.0 && f32::diff_of_products(c, d, a, b) == -dop, "{dop}");
+        assert_eq!(dop, -f32::EPSILON * f32::EPSILON);
+        assert_eq!(f32::diff_of_products(c, d, a, b), -dop);
         let (a, b) = (1.0f64 + f64::EPSILON, 1.0f64 - f64::EPSILON);
         assert_eq!(a * b - 1.0, 0.0);
         assert_eq!(f64::diff_of_products(a, b, 1.0, 1.0), -f64::EPSILON * f64::EPSILON);

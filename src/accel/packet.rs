@@ -146,7 +146,7 @@ impl Lanes {
 ///
 /// # Safety
 /// The CPU must have AVX2.
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 pub unsafe fn nearest_packet(
     w: &WideBvh,
     prims: &Primitives<f32>,
@@ -210,17 +210,16 @@ unsafe fn min_lane(v: __m256) -> f32 {
     }
 }
 
-/// a·b − c·d per lane as `<f32 as Real>::diff_of_products` forms it: the f32 products are
-/// exact in f64, one f64 subtraction and one rounding to f32 follow.
+/// a·b − c·d per lane by `<f32 as Real>::diff_of_products`'s operations (Kahan's algorithm
+/// with fused multiply-adds).
 #[inline(always)]
 unsafe fn diff_of_products(a: __m256, b: __m256, c: __m256, d: __m256) -> __m256 {
-    // SAFETY: AVX is present (see `nearest_packet`).
+    // SAFETY: FMA is present (see `nearest_packet`).
     unsafe {
-        let lo = |x: __m256| _mm256_cvtps_pd(_mm256_castps256_ps128(x));
-        let hi = |x: __m256| _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(x));
-        let l = _mm256_sub_pd(_mm256_mul_pd(lo(a), lo(b)), _mm256_mul_pd(lo(c), lo(d)));
-        let h = _mm256_sub_pd(_mm256_mul_pd(hi(a), hi(b)), _mm256_mul_pd(hi(c), hi(d)));
-        _mm256_set_m128(_mm256_cvtpd_ps(h), _mm256_cvtpd_ps(l))
+        let cd = _mm256_mul_ps(c, d);
+        // fma(−c, d, cd) and fma(a, b, −cd).
+        let err = _mm256_fnmadd_ps(c, d, cd);
+        _mm256_add_ps(_mm256_fmsub_ps(a, b, cd), err)
     }
 }
 

@@ -2,8 +2,8 @@
 //! the eight child boxes of a [`WideNode`], and against the four triangles of a [`LeafBlock`].
 //!
 //! [`Scalar`] loops over the lanes; [`Avx2`] (x86-64 with AVX2 and FMA, detected at run time)
-//! uses 8-lane boxes and 4-lane triangles with the products of the edge functions in 4-lane
-//! f64. The triangle lanes perform exactly the IEEE operations of [`Triangle::intersect`] in
+//! uses 8-lane boxes and 4-lane triangles, the edge functions formed with fused
+//! multiply-adds. The triangle lanes perform exactly the IEEE operations of [`Triangle::intersect`] in
 //! the same order, so the distances are those of brute force bit for bit. The box lanes are
 //! conservative (see [`far_grow`], [`PARALLEL_INV`], [`widen`]): a box is entered whenever
 //! it may hold a hit in the search interval, so the walk finds what brute force finds.
@@ -224,7 +224,7 @@ pub fn prefetch<T>(p: &T) {
 pub fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::is_x86_feature_detected!("avx2")
+        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -233,7 +233,7 @@ pub fn has_avx2() -> bool {
 }
 
 /// AVX2 lanes: eight boxes in one register per plane, four triangles in one register per
-/// coordinate, their edge-function products in four f64 lanes.
+/// coordinate.
 #[cfg(target_arch = "x86_64")]
 pub struct Avx2;
 
@@ -310,15 +310,16 @@ mod avx2 {
         }
     }
 
-    /// a·b − c·d per lane: the f32 products are exact in f64, one f64 subtraction and one
-    /// rounding to f32 follow, as in `<f32 as Real>::diff_of_products`.
+    /// a·b − c·d per lane by `<f32 as Real>::diff_of_products`'s operations (Kahan's
+    /// algorithm with fused multiply-adds).
     #[inline(always)]
     unsafe fn diff_of_products(a: __m128, b: __m128, c: __m128, d: __m128) -> __m128 {
-        // SAFETY: reached with AVX present (see above).
+        // SAFETY: reached with FMA present (see above).
         unsafe {
-            let ab = _mm256_mul_pd(_mm256_cvtps_pd(a), _mm256_cvtps_pd(b));
-            let cd = _mm256_mul_pd(_mm256_cvtps_pd(c), _mm256_cvtps_pd(d));
-            _mm256_cvtpd_ps(_mm256_sub_pd(ab, cd))
+            let cd = _mm_mul_ps(c, d);
+            // fma(−c, d, cd) and fma(a, b, −cd).
+            let err = _mm_fnmadd_ps(c, d, cd);
+            _mm_add_ps(_mm_fmsub_ps(a, b, cd), err)
         }
     }
 

@@ -57,7 +57,7 @@ pub fn nearest_scalar(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn nearest_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32) -> Option<Hit<f32>> {
     if tmin >= 0.0 {
         nearest_with::<simd::Avx2, false>(w, prims, ray, tmin, tmax)
@@ -67,7 +67,7 @@ fn nearest_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32,
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn occluded_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32) -> bool {
     if tmin >= 0.0 {
         occluded_with::<simd::Avx2, false>(w, prims, ray, tmin, tmax)
@@ -351,7 +351,7 @@ pub fn nearest_many(
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn nearest_many_avx2(
     w: &WideBvh,
     prims: &Primitives<f32>,
