@@ -71,7 +71,8 @@ struct Lanes {
 impl Lanes {
     /// The lanes of `rays` (1 to [`PACKET`]; missing lanes repeat the last ray), or `None`
     /// where they are not [`coherent`].
-    #[inline(always)]
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
     unsafe fn new(rays: &[Ray<f32>]) -> Option<Self> {
         debug_assert!(!rays.is_empty() && rays.len() <= PACKET);
         // SAFETY: AVX2 is present (see `nearest_packet`); rows hold eight f32.
@@ -198,18 +199,6 @@ unsafe fn lanes_of(mask: u32) -> __m256 {
     }
 }
 
-/// The smallest lane of `v`.
-#[inline(always)]
-unsafe fn min_lane(v: __m256) -> f32 {
-    // SAFETY: AVX is present (see `nearest_packet`).
-    unsafe {
-        let m = _mm256_min_ps(v, _mm256_permute2f128_ps::<1>(v, v));
-        let m = _mm256_min_ps(m, _mm256_permute_ps::<0b0100_1110>(m));
-        let m = _mm256_min_ps(m, _mm256_permute_ps::<0b1011_0001>(m));
-        _mm256_cvtss_f32(m)
-    }
-}
-
 /// a·b − c·d per lane by `<f32 as Real>::diff_of_products`'s operations (Kahan's algorithm
 /// with fused multiply-adds).
 #[inline(always)]
@@ -284,8 +273,10 @@ impl<'a> Walk<'a, '_> {
                         let hit = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tn, _mm256_castsi256_ps(tf)), live);
                         let m = _mm256_movemask_ps(hit) as u32;
                         if m != 0 {
-                            // Ordered by the nearest entry among the lanes entering.
-                            let near = min_lane(_mm256_blendv_ps(_mm256_set1_ps(f32::INFINITY), tn, hit));
+                            // Ordered by the entry distance of the first lane entering (as
+                            // good as the nearest one for coherent rays, and cheaper).
+                            let first = _mm256_set1_epi32(m.trailing_zeros() as i32);
+                            let near = _mm256_cvtss_f32(_mm256_permutevar8x32_ps(tn, first));
                             keys[count] = (near.to_bits() as u64) << 32 | count as u64;
                             entered[count] = MaybeUninit::new((tn, child, m));
                             count += 1;
