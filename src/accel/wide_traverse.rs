@@ -289,23 +289,29 @@ pub(super) fn hit_record(
     best: &Nearest<f32>,
     from_block: Option<&LeafBlock>,
 ) -> Option<Hit<f32>> {
-    if !best.found {
-        return None;
-    }
     // A sphere or cylinder found later may have won, even in the same block.
-    let lane = from_block
-        .filter(|_| simd::is_triangle(best.prim_ref.0))
+    let in_block = from_block
+        .filter(|_| best.found && simd::is_triangle(best.prim_ref.0))
         .and_then(|b| b.prim_ref.iter().position(|&p| p == best.prim_ref.0).map(|lane| (b, lane)));
-    Some(match lane {
-        // The record prims.hit makes, from the copy of the triangle in the block.
+    match in_block {
+        // The record prims.hit makes, from the copy of the triangle in the block, written
+        // field by field into the result (a record built aside and copied out cost a
+        // store-forwarding stall per ray).
         Some((block, lane)) => {
             let v = |k: usize| V3::new(block.v[k][0][lane], block.v[k][1][lane], block.v[k][2][lane]);
             let normal = Triangle { v: [v(0), v(1), v(2)] }.normal(ray, best.t, best.part);
-            let tag = w.triangle_tag(best.prim_ref.index());
-            Hit { t: best.t, normal, prim_ref: best.prim_ref, part: best.part, tag, enter: ray.dir.dot(normal) < 0.0 }
+            Some(Hit {
+                t: best.t,
+                normal,
+                prim_ref: best.prim_ref,
+                part: best.part,
+                tag: w.triangle_tag(best.prim_ref.index()),
+                enter: ray.dir.dot(normal) < 0.0,
+            })
         }
-        _ => prims.hit(best.prim_ref, ray, best.t, best.part),
-    })
+        None if best.found => Some(prims.hit(best.prim_ref, ray, best.t, best.part)),
+        None => None,
+    }
 }
 
 #[inline(always)]
