@@ -13,6 +13,8 @@ use crate::math::{Real, V3};
 use crate::primitives::{PrimKind, PrimRef, Primitives};
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
+use std::sync::{Mutex, MutexGuard};
 
 /// One node of the binary tree, 32 bytes: the tree the CPU walks ([`super::traverse`]) and
 /// [`super::gpu_bvh`] collapses into the nodes the GPU walks.
@@ -649,12 +651,13 @@ fn node_of(bounds: &Aabb, left_or_first: u32, count: u32) -> BvhNode {
 
 /// Builds the subtree over `items` (starting at `offset` in the final primitive order) on
 /// this thread, appending its nodes depth-first to `out` (right-child indices relative to
-/// `out`'s start); returns its depth.
+/// index `start` of `out`); returns its depth.
 fn build_serial(
     items: &mut [Item],
     offset: usize,
     span: &Span,
     depth: u32,
+    start: usize,
     out: &mut Vec<BvhNode>,
     scratch: &mut Bins,
 ) -> u32 {
@@ -667,35 +670,64 @@ fn build_serial(
             let me = out.len();
             out.push(node_of(&span.bounds, 0, 0));
             let (l, r) = items.split_at_mut(mid);
-            let dl = build_serial(l, offset, &left, depth + 1, out, scratch);
-            out[me].left_or_first = out.len() as u32;
-            let dr = build_serial(r, offset + mid, &right, depth + 1, out, scratch);
+            let dl = build_serial(l, offset, &left, depth + 1, start, out, scratch);
+            out[me].left_or_first = (out.len() - start) as u32;
+            let dr = build_serial(r, offset + mid, &right, depth + 1, start, out, scratch);
             dl.max(dr)
         }
     }
 }
 
-/// A subtree built in parallel: its top nodes, and below them node arrays built serially.
+/// A subtree built in parallel: its top nodes, and below them subtrees built serially, each
+/// into the node arena of the thread that built it.
 enum Part {
-    Serial { nodes: Vec<BvhNode>, depth: u32 },
-    Split { node: BvhNode, left: Box<Part>, right: Box<Part> },
+    /// `len` nodes from `start` in arena `arena` (right-child indices relative to `start`).
+    Serial { arena: usize, start: usize, len: usize, depth: u32 },
+    /// `len`: the nodes of the whole part, this one included.
+    Split { node: BvhNode, len: usize, left: Box<Part>, right: Box<Part> },
 }
 
-fn build_parallel(items: &mut [Item], offset: usize, span: &Span, depth: u32) -> Part {
+/// One node array per thread, to which the subtrees it builds serially are appended: the
+/// nodes are written once into memory that grows in large steps (advised for huge pages),
+/// instead of into an array per subtree; [`Part::flatten`] then copies them into place.
+struct Arenas(Vec<Mutex<Vec<BvhNode>>>);
+
+impl Arenas {
+    fn new(items: usize) -> Arenas {
+        let threads = rayon::current_num_threads();
+        // Trees have about 1.1 nodes per primitive; an arena that runs out grows.
+        let each = items / threads * 5 / 4 + 1024;
+        Arenas((0..threads).map(|_| Mutex::new(super::huge_pages::vec_with_capacity(each))).collect())
+    }
+
+    /// This thread's arena. Any thread may use any arena; the lock only makes that safe.
+    fn mine(&self) -> (usize, MutexGuard<'_, Vec<BvhNode>>) {
+        let k = rayon::current_thread_index().unwrap_or(0) % self.0.len();
+        (k, self.0[k].lock().unwrap_or_else(|e| e.into_inner()))
+    }
+}
+
+fn build_parallel(items: &mut [Item], offset: usize, span: &Span, depth: u32, arenas: &Arenas) -> Part {
     if items.len() < PARALLEL_THRESHOLD {
-        let mut nodes = Vec::with_capacity(items.len());
-        let depth = build_serial(items, offset, span, depth, &mut nodes, &mut Bins::new());
-        return Part::Serial { nodes, depth };
+        let (arena, mut out) = arenas.mine();
+        let start = out.len();
+        let depth = build_serial(items, offset, span, depth, start, &mut out, &mut Bins::new());
+        return Part::Serial { arena, start, len: out.len() - start, depth };
     }
     match decide(items, span, depth, &mut Bins::new()) {
-        Decision::Leaf => Part::Serial { nodes: vec![node_of(&span.bounds, offset as u32, items.len() as u32)], depth },
+        Decision::Leaf => {
+            let (arena, mut out) = arenas.mine();
+            out.push(node_of(&span.bounds, offset as u32, items.len() as u32));
+            Part::Serial { arena, start: out.len() - 1, len: 1, depth }
+        }
         Decision::Split { mid, left, right } => {
             let (l, r) = items.split_at_mut(mid);
             let (pl, pr) = rayon::join(
-                || build_parallel(l, offset, &left, depth + 1),
-                || build_parallel(r, offset + mid, &right, depth + 1),
+                || build_parallel(l, offset, &left, depth + 1, arenas),
+                || build_parallel(r, offset + mid, &right, depth + 1, arenas),
             );
-            Part::Split { node: node_of(&span.bounds, 0, 0), left: Box::new(pl), right: Box::new(pr) }
+            let len = 1 + pl.len() + pr.len();
+            Part::Split { node: node_of(&span.bounds, 0, 0), len, left: Box::new(pl), right: Box::new(pr) }
         }
     }
 }
@@ -703,28 +735,36 @@ fn build_parallel(items: &mut [Item], offset: usize, span: &Span, depth: u32) ->
 impl Part {
     fn len(&self) -> usize {
         match self {
-            Part::Serial { nodes, .. } => nodes.len(),
-            Part::Split { left, right, .. } => 1 + left.len() + right.len(),
+            Part::Serial { len, .. } | Part::Split { len, .. } => *len,
         }
     }
-    /// Appends the subtree depth-first, right-child indices made absolute; returns its depth.
-    fn flatten_into(self, out: &mut Vec<BvhNode>) -> u32 {
+
+    fn depth(&self) -> u32 {
         match self {
-            Part::Serial { nodes, depth } => {
-                let base = out.len() as u32;
-                out.extend(nodes.into_iter().map(|mut n| {
+            Part::Serial { depth, .. } => *depth,
+            Part::Split { left, right, .. } => left.depth().max(right.depth()),
+        }
+    }
+
+    /// Writes the part depth-first into `out` (its `len()` nodes, the first at index `base`
+    /// of the whole tree), right-child indices made absolute; both halves of a split at once.
+    fn flatten(&self, arenas: &[Vec<BvhNode>], base: usize, out: &mut [MaybeUninit<BvhNode>]) {
+        match self {
+            Part::Serial { arena, start, len, .. } => {
+                for (o, n) in out.iter_mut().zip(&arenas[*arena][*start..start + len]) {
+                    let mut n = *n;
                     if !n.is_leaf() {
-                        n.left_or_first += base;
+                        n.left_or_first += base as u32;
                     }
-                    n
-                }));
-                depth
+                    o.write(n);
+                }
             }
-            Part::Split { mut node, left, right } => {
-                let me = out.len();
-                node.left_or_first = (me + 1 + left.len()) as u32;
-                out.push(node);
-                left.flatten_into(out).max(right.flatten_into(out))
+            Part::Split { node, left, right, .. } => {
+                let (me, rest) = out.split_first_mut().expect("a split has a node");
+                let (l, r) = rest.split_at_mut(left.len());
+                let right_base = base + 1 + left.len();
+                me.write(BvhNode { left_or_first: right_base as u32, ..*node });
+                rayon::join(|| left.flatten(arenas, base + 1, l), || right.flatten(arenas, right_base, r));
             }
         }
     }
@@ -733,9 +773,10 @@ impl Part {
 impl Bvh {
     /// Builds over every bounded primitive of `prims` (planes stay outside).
     pub fn build<R: Real>(prims: &Primitives<R>) -> Bvh {
-        let refs: Vec<PrimRef> = prims.bounded_refs().collect();
-        let mut items: Vec<Item> = super::huge_pages::vec_with_capacity(refs.len());
-        items.par_extend(refs.par_iter().with_min_len(4096).map(|&prim| {
+        let count = prims.bounded_count();
+        let mut items: Vec<Item> = super::huge_pages::vec_with_capacity(count);
+        items.par_extend((0..count).into_par_iter().with_min_len(4096).map(|i| {
+            let prim = prims.bounded_ref(i);
             let (lo, hi) = match prim.kind() {
                 // Min and max are exact, so only the conversion to f32 rounds.
                 PrimKind::Triangle => {
@@ -754,13 +795,18 @@ impl Bvh {
         if items.is_empty() {
             return Bvh::default();
         }
-        let span = items.par_chunks(1 << 16).map(Span::of).reduce(|| Span::empty(), |a, b| a.join(&b));
-        let root = build_parallel(&mut items, 0, &span, 1);
+        let span = items.par_chunks(1 << 16).map(Span::of).reduce(Span::empty, |a, b| a.join(&b));
+        let arenas = Arenas::new(items.len());
+        let root = build_parallel(&mut items, 0, &span, 1, &arenas);
+        let arenas: Vec<Vec<BvhNode>> =
+            arenas.0.into_iter().map(|a| a.into_inner().unwrap_or_else(|e| e.into_inner())).collect();
         let mut nodes = super::huge_pages::vec_with_capacity(root.len());
-        let depth = root.flatten_into(&mut nodes);
+        root.flatten(&arenas, 0, &mut nodes.spare_capacity_mut()[..root.len()]);
+        // SAFETY: `flatten` wrote each of the part's `len()` nodes.
+        unsafe { nodes.set_len(root.len()) };
         let mut prim_refs = super::huge_pages::vec_with_capacity(items.len());
         prim_refs.par_extend(items.par_iter().map(Item::prim));
-        Bvh { nodes, prim_refs, depth }
+        Bvh { nodes, prim_refs, depth: root.depth() }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -807,35 +853,50 @@ mod tests {
 
     #[test]
     fn every_primitive_is_in_exactly_one_leaf_inside_its_bounds() {
-        let mut prims = random_triangles(5000, 1);
-        prims
-            .spheres
-            .push(Tagged { shape: Sphere { center: V3::new(1.0, 2.0, 3.0), radius: 0.5 }, tag: Tag::default() });
-        let bvh = Bvh::build(&prims);
-        let mut seen = vec![0u32; bvh.prim_refs.len()];
-        for (i, node) in bvh.nodes.iter().enumerate() {
-            if node.is_leaf() {
-                for k in node.left_or_first..node.left_or_first + node.count {
-                    seen[k as usize] += 1;
-                    let (lo, hi) = prims.bounds_f64(bvh.prim_refs[k as usize]);
-                    for a in 0..3 {
-                        assert!(node.bmin[a] as f64 <= lo[a] && hi[a] <= node.bmax[a] as f64);
+        // The larger scene is built by several threads, in parts joined at the end.
+        for n in [5000, 40_000] {
+            let mut prims = random_triangles(n, 1);
+            prims
+                .spheres
+                .push(Tagged { shape: Sphere { center: V3::new(1.0, 2.0, 3.0), radius: 0.5 }, tag: Tag::default() });
+            let bvh = Bvh::build(&prims);
+            let mut seen = vec![0u32; bvh.prim_refs.len()];
+            // Walked from the root: every node is reached once, leaves cover every primitive
+            // once, children lie inside their parent, the depth is the longest path.
+            let mut reached = 0;
+            let mut depth = 0;
+            let mut stack = vec![(0usize, 1u32)];
+            while let Some((i, d)) = stack.pop() {
+                let node = bvh.nodes[i];
+                reached += 1;
+                depth = depth.max(d);
+                if node.is_leaf() {
+                    for k in node.left_or_first..node.left_or_first + node.count {
+                        seen[k as usize] += 1;
+                        let (lo, hi) = prims.bounds_f64(bvh.prim_refs[k as usize]);
+                        for a in 0..3 {
+                            assert!(node.bmin[a] as f64 <= lo[a] && hi[a] <= node.bmax[a] as f64);
+                        }
                     }
-                }
-            } else {
-                // Children lie inside their parent.
-                for c in [i + 1, node.left_or_first as usize] {
-                    for a in 0..3 {
-                        assert!(node.bmin[a] <= bvh.nodes[c].bmin[a] && bvh.nodes[c].bmax[a] <= node.bmax[a]);
+                } else {
+                    for c in [i + 1, node.left_or_first as usize] {
+                        for a in 0..3 {
+                            assert!(node.bmin[a] <= bvh.nodes[c].bmin[a] && bvh.nodes[c].bmax[a] <= node.bmax[a]);
+                        }
+                        stack.push((c, d + 1));
                     }
                 }
             }
+            assert_eq!(reached, bvh.nodes.len());
+            assert_eq!(depth, bvh.depth);
+            assert!(seen.iter().all(|&s| s == 1));
+            let mut refs: Vec<u32> = bvh.prim_refs.iter().map(|r| r.0).collect();
+            refs.sort();
+            assert!(refs == prims.bounded_refs().map(|r| r.0).collect::<Vec<_>>());
+            assert!(bvh.depth <= MAX_DEPTH);
+            // A SAH tree over uniformly scattered triangles is shallow.
+            assert!(bvh.depth < 30, "depth {}", bvh.depth);
         }
-        assert!(seen.iter().all(|&s| s == 1));
-        assert_eq!(bvh.prim_refs.len(), 5001);
-        assert!(bvh.depth <= MAX_DEPTH);
-        // A SAH tree over uniformly scattered triangles is shallow.
-        assert!(bvh.depth < 30, "depth {}", bvh.depth);
     }
 
     #[test]
