@@ -414,22 +414,32 @@ impl<'a> Collapse<'a> {
         self.depth = self.depth.max(depth);
         let me = self.nodes.len();
         self.nodes.push(WideNode::EMPTY);
-        // Binary nodes and their first primitives.
+        // Binary nodes and their first primitives, and the surface area of those that may
+        // be opened (None for leaves).
         let mut kids = [(0usize, 0u32); WIDTH];
+        let mut areas = [None; WIDTH];
         let mut len = 1;
         if self.is_leaf(bin) {
             kids[0] = (bin, first);
         } else {
             [kids[0], kids[1]] = self.children(bin, first);
+            (areas[0], areas[1]) = (self.openable_area(kids[0].0), self.openable_area(kids[1].0));
             len = 2;
         }
-        // Open the child of largest surface area until eight are gathered.
+        // Open the child of largest surface area (the last of equals) until eight are
+        // gathered.
         while len < WIDTH {
-            let open = (0..len)
-                .filter(|&k| !self.is_leaf(kids[k].0))
-                .max_by(|&a, &b| self.area(kids[a].0).total_cmp(&self.area(kids[b].0)));
-            let Some(k) = open else { break };
+            let mut open: Option<(usize, f32)> = None;
+            for (k, a) in areas[..len].iter().enumerate() {
+                if let Some(a) = *a
+                    && open.is_none_or(|(_, b)| a.total_cmp(&b).is_ge())
+                {
+                    open = Some((k, a));
+                }
+            }
+            let Some((k, _)) = open else { break };
             [kids[k], kids[len]] = self.children(kids[k].0, kids[k].1);
+            (areas[k], areas[len]) = (self.openable_area(kids[k].0), self.openable_area(kids[len].0));
             len += 1;
         }
         for (slot, &(k, first)) in kids[..len].iter().enumerate() {
@@ -448,8 +458,9 @@ impl<'a> Collapse<'a> {
         node_word(me)
     }
 
-    fn area(&self, i: usize) -> f32 {
-        half_area(&self.bvh.nodes[i])
+    /// The surface area of binary node `i`, unless it becomes a leaf.
+    fn openable_area(&self, i: usize) -> Option<f32> {
+        (!self.is_leaf(i)).then(|| half_area(&self.bvh.nodes[i]))
     }
 
     /// The children of binary node `i` and their first primitives.
