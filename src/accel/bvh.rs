@@ -6,8 +6,11 @@
 //! bins its primitives' centroids on all three axes in one pass, sweeps the bins for the
 //! cheapest split, and partitions the records in a second pass that also gathers both
 //! children's bounds, so no pass is spent on bounds alone and nothing is allocated per node.
-//! Subtrees below `PARALLEL_THRESHOLD` primitives are built by one thread straight into their
-//! own node array; the arrays are joined once at the end.
+//! Boxes and bin positions are computed four lanes at a time (`F4`). Nodes of up to
+//! 12 primitives are split exactly, all three axes sorted at once by a sorting network;
+//! nodes of up to 4 try every split in two. Subtrees below `PARALLEL_THRESHOLD` primitives
+//! are built by one thread each, appended to that thread's node arena; the arenas are copied
+//! into the depth-first array once at the end, both halves of each split at once.
 
 use crate::math::{Real, V3};
 use crate::primitives::{PrimKind, PrimRef, Primitives};
@@ -506,12 +509,9 @@ enum Decision {
 /// SAH sweep over so few primitives costs less than resetting and sweeping bins.
 const SMALL: usize = 12;
 
-/// Sorting networks for 4, 8 and 12 keys: Batcher's odd–even merge sort for 16, cut to the
-/// first 4, 8 or 12 inputs, each comparator dropped that the 0-1 principle shows redundant
-/// (5, 19 and 41 comparators; the least known are 5, 19 and 39). Fewer keys are padded with
-/// +∞.
-#[rustfmt::skip]
-const NET4: [(u8, u8); 5] = [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)];
+/// Sorting networks for 8 and 12 keys: Batcher's odd–even merge sort for 16, cut to the
+/// first 8 or 12 inputs, each comparator dropped that the 0-1 principle shows redundant (19
+/// and 41 comparators; the least known are 19 and 39). Fewer keys are padded with +∞.
 #[rustfmt::skip]
 const NET8: [(u8, u8); 19] = [
     (0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (1, 2), (5, 6),
@@ -537,7 +537,7 @@ fn sort_lanes<const N: usize>(keys: &mut [F4; SMALL], net: &[(u8, u8); N]) {
     }
 }
 
-/// The exact-SAH decision for a node of 2..=SMALL primitives: per axis the primitives are
+/// The exact-SAH decision for a node of MAX_LEAF + 1 ..= SMALL primitives: per axis the primitives are
 /// ordered by centroid and every split position is evaluated; the items end up in the order
 /// of the chosen axis.
 ///
@@ -547,7 +547,7 @@ fn sort_lanes<const N: usize>(keys: &mut [F4; SMALL], net: &[(u8, u8); N]) {
 /// for those less than 16 ulps apart, which may come out in either order.
 fn decide_small(items: &mut [Item], span: &Span) -> Decision {
     let n = items.len();
-    debug_assert!((2..=SMALL).contains(&n));
+    debug_assert!((MAX_LEAF + 1..=SMALL).contains(&n));
     let inv_parent = 1.0 / span.bounds.half_area().max(f32::MIN_POSITIVE);
     let (clo, chi) = (span.centroids.lo.to_array(), span.centroids.hi.to_array());
     let mut keys = [F4::splat(f32::INFINITY); SMALL];
@@ -556,7 +556,6 @@ fn decide_small(items: &mut [Item], span: &Span) -> Decision {
         *key = lo.add(hi).with_low_bits(k as u32 + 1);
     }
     match n {
-        ..=4 => sort_lanes(&mut keys, &NET4),
         ..=8 => sort_lanes(&mut keys, &NET8),
         _ => sort_lanes(&mut keys, &NET12),
     }
@@ -588,10 +587,9 @@ fn decide_small(items: &mut [Item], span: &Span) -> Decision {
             }
         }
     }
+    // Too many primitives for a leaf: split even where no split pays for itself.
     let (axis, mid) = match best {
-        Some((_, _, cost)) if n <= MAX_LEAF && cost >= n as f32 => return Decision::Leaf,
         Some((axis, mid, _)) => (axis, mid),
-        None if n <= MAX_LEAF => return Decision::Leaf,
         // All centroids coincide: split the list in halves.
         None => {
             let mid = n / 2;
@@ -982,9 +980,9 @@ mod tests {
                 (1..inputs).all(|k| (0..4).all(|lane| sorted[k - 1][lane] <= sorted[k][lane]))
             })
         }
-        assert!(sorts(&NET4, 4) && sorts(&NET8, 8) && sorts(&NET12, 12));
+        assert!(sorts(&NET8, 8) && sorts(&NET12, 12));
         // Fewer keys than inputs, padded with +∞ as `decide_small` pads them.
-        assert!(sorts(&NET4, 3) && sorts(&NET8, 5) && sorts(&NET12, 9));
+        assert!(sorts(&NET8, 5) && sorts(&NET12, 9));
         // A network cut short does not sort.
         let cut: [(u8, u8); 40] = NET12[..40].try_into().unwrap();
         assert!(!sorts(&cut, 12));
