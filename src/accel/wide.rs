@@ -145,6 +145,11 @@ impl WideBvh {
             .par_iter()
             .map(|t| {
                 let mut c = Collapse::new(bvh, &info, None);
+                // About what collapses make (on the bumpy torus 0.05 nodes and 0.28 blocks per
+                // primitive), so that the arrays seldom grow.
+                let count = (info[t.bin] & !INFO_LEAF) as usize;
+                c.nodes.reserve(count / 12 + 8);
+                c.spans.reserve(count / 3 + 8);
                 c.node_over(t.bin, t.first, t.depth);
                 c
             })
