@@ -171,12 +171,21 @@ impl<R: Real> Primitives<R> {
         }
     }
 
-    /// Every bounded primitive, in [`PrimRef`] order.
+    /// Bounded primitive `i` in the order of [`Self::bounded_refs`] (`i < bounded_count()`).
+    pub fn bounded_ref(&self, i: usize) -> PrimRef {
+        let (s, c) = (self.spheres.len(), self.cylinders.len());
+        if i < s {
+            PrimRef::new(PrimKind::Sphere, i)
+        } else if i < s + c {
+            PrimRef::new(PrimKind::Cylinder, i - s)
+        } else {
+            PrimRef::new(PrimKind::Triangle, i - s - c)
+        }
+    }
+
+    /// Every bounded primitive, in [`PrimRef`] order: spheres, then cylinders, then triangles.
     pub fn bounded_refs(&self) -> impl Iterator<Item = PrimRef> + '_ {
-        let s = (0..self.spheres.len()).map(|i| PrimRef::new(PrimKind::Sphere, i));
-        let c = (0..self.cylinders.len()).map(|i| PrimRef::new(PrimKind::Cylinder, i));
-        let t = (0..self.triangles.len()).map(|i| PrimRef::new(PrimKind::Triangle, i));
-        s.chain(c).chain(t)
+        (0..self.bounded_count()).map(|i| self.bounded_ref(i))
     }
 
     pub fn plane_refs(&self) -> impl Iterator<Item = PrimRef> + '_ {
