@@ -3,6 +3,11 @@
 // A binding is declared only in variants whose defs use it; empty arrays are bound to a
 // one-element dummy buffer.
 //
+// An array larger than one binding (triangles, nodes, leaf triangles; src/backend/gpu/split.rs)
+// is bound in parts: part 0 at its usual binding, parts 1, 2, 3 at 16 + 3 * array + part - 1.
+// TRIANGLE_PARTS, NODE_PARTS and LEAF_TRIANGLE_PARTS (1: whole) say how many there are, and
+// strahl::traverse reads an element from its part.
+//
 // The frame is a read-only storage buffer, not a uniform: lavapipe (Mesa 22.3) folds the values
 // of uniforms that steer branches and loops into a new compiled copy of the shader every time
 // the pipeline is bound, and never frees it: 1.4 MB and ~10 ms per sample pass of the seed
@@ -47,20 +52,65 @@
 #endif
 #ifdef TRIANGLES
 @group(0) @binding(4) var<storage, read> triangles: array<Triangle>;
+#if TRIANGLE_PARTS > 1
+@group(0) @binding(16) var<storage, read> triangles_1: array<Triangle>;
+#endif
+#if TRIANGLE_PARTS > 2
+@group(0) @binding(17) var<storage, read> triangles_2: array<Triangle>;
+#endif
+#if TRIANGLE_PARTS > 3
+@group(0) @binding(18) var<storage, read> triangles_3: array<Triangle>;
+#endif
 #endif
 #ifdef BVH
 // With LOAD64 the nodes and leaf triangles are read as 64-bit words (strahl::traverse::fetch_node).
 #ifdef LOAD64
 @group(0) @binding(5) var<storage, read> nodes: array<vec2<u64>>;
+#if NODE_PARTS > 1
+@group(0) @binding(19) var<storage, read> nodes_1: array<vec2<u64>>;
+#endif
+#if NODE_PARTS > 2
+@group(0) @binding(20) var<storage, read> nodes_2: array<vec2<u64>>;
+#endif
+#if NODE_PARTS > 3
+@group(0) @binding(21) var<storage, read> nodes_3: array<vec2<u64>>;
+#endif
 #else
 @group(0) @binding(5) var<storage, read> nodes: array<Node>;
+#if NODE_PARTS > 1
+@group(0) @binding(19) var<storage, read> nodes_1: array<Node>;
+#endif
+#if NODE_PARTS > 2
+@group(0) @binding(20) var<storage, read> nodes_2: array<Node>;
+#endif
+#if NODE_PARTS > 3
+@group(0) @binding(21) var<storage, read> nodes_3: array<Node>;
+#endif
 #endif
 @group(0) @binding(6) var<storage, read> shape_refs: array<u32>;
 #ifdef TRIANGLES
 #ifdef LOAD64
 @group(0) @binding(10) var<storage, read> leaf_triangles: array<vec2<u64>>;
+#if LEAF_TRIANGLE_PARTS > 1
+@group(0) @binding(22) var<storage, read> leaf_triangles_1: array<vec2<u64>>;
+#endif
+#if LEAF_TRIANGLE_PARTS > 2
+@group(0) @binding(23) var<storage, read> leaf_triangles_2: array<vec2<u64>>;
+#endif
+#if LEAF_TRIANGLE_PARTS > 3
+@group(0) @binding(24) var<storage, read> leaf_triangles_3: array<vec2<u64>>;
+#endif
 #else
 @group(0) @binding(10) var<storage, read> leaf_triangles: array<LeafTriangle>;
+#if LEAF_TRIANGLE_PARTS > 1
+@group(0) @binding(22) var<storage, read> leaf_triangles_1: array<LeafTriangle>;
+#endif
+#if LEAF_TRIANGLE_PARTS > 2
+@group(0) @binding(23) var<storage, read> leaf_triangles_2: array<LeafTriangle>;
+#endif
+#if LEAF_TRIANGLE_PARTS > 3
+@group(0) @binding(24) var<storage, read> leaf_triangles_3: array<LeafTriangle>;
+#endif
 #endif
 #endif
 #endif

@@ -7,6 +7,9 @@
 #import strahl::bindings::{frame, emitters, lights, materials}
 #ifdef TRIANGLES
 #import strahl::bindings::triangles
+#if TRIANGLE_PARTS > 1
+#import strahl::traverse::scene_triangle
+#endif
 #endif
 #ifdef SPHERES
 #import strahl::bindings::spheres
@@ -107,7 +110,11 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     var bc = vec2<f32>(0.0);
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
+#if TRIANGLE_PARTS > 1
+        let t = scene_triangle(i);
+#else
         let t = triangles[i];
+#endif
         let su = sqrt(u.y);
         let b0 = 1.0 - su;
         let b1 = u.z * su;

@@ -13,6 +13,9 @@
 #import strahl::bindings::triangle_uvs
 #ifdef TRIANGLES
 #import strahl::bindings::triangles
+#if TRIANGLE_PARTS > 1
+#import strahl::traverse::scene_triangle
+#endif
 #endif
 #endif
 
@@ -116,7 +119,11 @@ fn textured(m: Material, prim: u32, p: vec3<f32>) -> Material {
 #ifdef TRIANGLES
     if (m.color_texture != 0u || m.radiance_texture != 0u) && (prim >> INDEX_BITS) == KIND_TRIANGLE {
         let i = prim & INDEX_MASK;
+#if TRIANGLE_PARTS > 1
+        let t = scene_triangle(i);
+#else
         let t = triangles[i];
+#endif
         let bc = barycentrics(t.va, t.vb, t.vc, p);
         out.color = m.color * factor_at(m.color_texture, i, bc);
         out.radiance = m.radiance * factor_at(m.radiance_texture, i, bc);

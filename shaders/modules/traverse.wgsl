@@ -2,8 +2,10 @@
 // src/accel/gpu_bvh.rs (the walk) and the tie rule of src/primitives.rs (`Nearest`).
 //
 // Shader defs: SPHERES, CYLINDERS, TRIANGLES, PLANES (which primitive kinds exist), BVH (walk
-// the tree; without it every bounded primitive is tested) and LOAD64 (the device reads 64-bit
-// words: nodes and leaf triangles are fetched as such, see fetch_node).
+// the tree; without it every bounded primitive is tested), LOAD64 (the device reads 64-bit
+// words: nodes and leaf triangles are fetched as such, see fetch_node) and TRIANGLE_PARTS,
+// NODE_PARTS, LEAF_TRIANGLE_PARTS (arrays larger than one binding, bound in parts: see
+// node_word; 1 for every scene whose arrays fit).
 //
 // What this is shaped for: on a device that runs invocations as the lanes of one SIMD program
 // (lavapipe: 8 lanes on the CPU), a storage-buffer read whose address differs per lane costs
@@ -17,9 +19,27 @@
 #ifdef BVH
 #import strahl::types::{Node, F32_MAX, LINK_LEAF, LINK_SHAPES, LINK_COUNT_SHIFT, LINK_FIRST_MASK, LINK_EMPTY}
 #import strahl::bindings::{nodes, shape_refs}
+#if NODE_PARTS > 1
+#import strahl::bindings::nodes_1
+#endif
+#if NODE_PARTS > 2
+#import strahl::bindings::nodes_2
+#endif
+#if NODE_PARTS > 3
+#import strahl::bindings::nodes_3
+#endif
 #ifdef TRIANGLES
 #import strahl::types::LeafTriangle
 #import strahl::bindings::leaf_triangles
+#if LEAF_TRIANGLE_PARTS > 1
+#import strahl::bindings::leaf_triangles_1
+#endif
+#if LEAF_TRIANGLE_PARTS > 2
+#import strahl::bindings::leaf_triangles_2
+#endif
+#if LEAF_TRIANGLE_PARTS > 3
+#import strahl::bindings::leaf_triangles_3
+#endif
 #endif
 #endif
 #import strahl::roots::{Roots, roots_empty}
@@ -33,6 +53,16 @@
 #endif
 #ifdef TRIANGLES
 #import strahl::bindings::triangles
+#if TRIANGLE_PARTS > 1
+#import strahl::types::Triangle
+#import strahl::bindings::triangles_1
+#endif
+#if TRIANGLE_PARTS > 2
+#import strahl::bindings::triangles_2
+#endif
+#if TRIANGLE_PARTS > 3
+#import strahl::bindings::triangles_3
+#endif
 #import strahl::triangle::{triangle_roots, triangle_intersect, vertices_intersect, shear_new, Shear, triangle_normal}
 #endif
 #ifdef PLANES
@@ -73,6 +103,34 @@ fn prim_ref(kind: u32, index: u32) -> u32 {
     return (kind << INDEX_BITS) | index;
 }
 
+// Reading a split array (src/backend/gpu/split.rs): element i lies in part i / PER_PART at
+// i % PER_PART (PER_PART a constant of the variant, substituted by the composer). A binding
+// cannot be indexed by a value, so branches pick the part, part 0 last. Only variants of
+// scenes with an array larger than one binding contain these functions.
+#ifdef TRIANGLES
+#if TRIANGLE_PARTS > 1
+// Triangle i of the scene order.
+fn scene_triangle(i: u32) -> Triangle {
+    let p = i / #TRIANGLES_PER_PART;
+    let j = i - p * #TRIANGLES_PER_PART;
+    if p == 1u {
+        return triangles_1[j];
+    }
+#if TRIANGLE_PARTS > 2
+    if p == 2u {
+        return triangles_2[j];
+    }
+#endif
+#if TRIANGLE_PARTS > 3
+    if p == 3u {
+        return triangles_3[j];
+    }
+#endif
+    return triangles[j];
+}
+#endif
+#endif
+
 // Every root of primitive r in (tmin, tmax).
 fn prim_roots(r: u32, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots {
     let kind = r >> INDEX_BITS;
@@ -89,7 +147,11 @@ fn prim_roots(r: u32, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots
 #endif
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
+#if TRIANGLE_PARTS > 1
+        return triangle_roots(scene_triangle(i), o, d, tmin, tmax);
+#else
         return triangle_roots(triangles[i], o, d, tmin, tmax);
+#endif
     }
 #endif
 #ifdef PLANES
@@ -117,7 +179,11 @@ fn prim_first(r: u32, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> vec2<
 #endif
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
+#if TRIANGLE_PARTS > 1
+        return vec2<f32>(triangle_intersect(scene_triangle(i), o, shear_new(d), tmin, tmax), 0.0);
+#else
         return vec2<f32>(triangle_intersect(triangles[i], o, shear_new(d), tmin, tmax), 0.0);
+#endif
     }
 #endif
 #ifdef PLANES
@@ -144,7 +210,11 @@ fn prim_normal(r: u32, o: vec3<f32>, d: vec3<f32>, t: f32, part: u32) -> vec3<f3
 #endif
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
+#if TRIANGLE_PARTS > 1
+        return triangle_normal(scene_triangle(i));
+#else
         return triangle_normal(triangles[i]);
+#endif
     }
 #endif
 #ifdef PLANES
@@ -173,7 +243,11 @@ fn prim_tag(r: u32) -> vec3<u32> {
 #endif
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
+#if TRIANGLE_PARTS > 1
+        let t = scene_triangle(i);
+#else
         let t = triangles[i];
+#endif
         return vec3<u32>(t.object, t.face, t.material);
     }
 #endif
@@ -267,31 +341,109 @@ fn vec3_word(w: vec2<u64>) -> vec3<f32> {
 }
 #endif
 
+#if NODE_PARTS > 1
+// Of the split nodes (see scene_triangle): with LOAD64 word w (0 .. 3) of node i, else node i.
+#ifdef LOAD64
+fn node_word(i: u32, w: u32) -> vec2<u64> {
+    let p = i / #NODES_PER_PART;
+    let j = 4u * (i - p * #NODES_PER_PART) + w;
+#else
+fn node_at(i: u32) -> Node {
+    let p = i / #NODES_PER_PART;
+    let j = i - p * #NODES_PER_PART;
+#endif
+    if p == 1u {
+        return nodes_1[j];
+    }
+#if NODE_PARTS > 2
+    if p == 2u {
+        return nodes_2[j];
+    }
+#endif
+#if NODE_PARTS > 3
+    if p == 3u {
+        return nodes_3[j];
+    }
+#endif
+    return nodes[j];
+}
+#endif
+
 // Inner node i. With LOAD64 as four 16-byte reads of two 64-bit words each, which a SIMD
 // device with per-lane reads (lavapipe) serves with half the loads and bounds checks of
 // 32-bit words.
 fn fetch_node(i: u32) -> Node {
 #ifdef LOAD64
+#if NODE_PARTS > 1
+    let a = node_word(i, 0u);
+    let b = node_word(i, 1u);
+    let c = node_word(i, 2u);
+    let e = node_word(i, 3u);
+#else
     let a = nodes[4u * i];
     let b = nodes[4u * i + 1u];
     let c = nodes[4u * i + 2u];
     let e = nodes[4u * i + 3u];
+#endif
     return Node(vec3_word(a), high_u32(a.y), vec3_word(b), high_u32(b.y), vec3_word(c), 0u, vec3_word(e), 0u);
 #else
+#if NODE_PARTS > 1
+    return node_at(i);
+#else
     return nodes[i];
+#endif
 #endif
 }
 
 #ifdef TRIANGLES
+#if LEAF_TRIANGLE_PARTS > 1
+// Of the split leaf triangles (see scene_triangle): with LOAD64 word w (0 .. 2) of leaf
+// triangle k, else leaf triangle k.
+#ifdef LOAD64
+fn leaf_word(k: u32, w: u32) -> vec2<u64> {
+    let p = k / #LEAF_TRIANGLES_PER_PART;
+    let j = 3u * (k - p * #LEAF_TRIANGLES_PER_PART) + w;
+#else
+fn leaf_at(k: u32) -> LeafTriangle {
+    let p = k / #LEAF_TRIANGLES_PER_PART;
+    let j = k - p * #LEAF_TRIANGLES_PER_PART;
+#endif
+    if p == 1u {
+        return leaf_triangles_1[j];
+    }
+#if LEAF_TRIANGLE_PARTS > 2
+    if p == 2u {
+        return leaf_triangles_2[j];
+    }
+#endif
+#if LEAF_TRIANGLE_PARTS > 3
+    if p == 3u {
+        return leaf_triangles_3[j];
+    }
+#endif
+    return leaf_triangles[j];
+}
+#endif
+
 // Triangle k of the leaf order (see fetch_node for LOAD64).
 fn fetch_leaf_triangle(k: u32) -> LeafTriangle {
 #ifdef LOAD64
+#if LEAF_TRIANGLE_PARTS > 1
+    let a = leaf_word(k, 0u);
+    let b = leaf_word(k, 1u);
+    let c = leaf_word(k, 2u);
+#else
     let a = leaf_triangles[3u * k];
     let b = leaf_triangles[3u * k + 1u];
     let c = leaf_triangles[3u * k + 2u];
+#endif
     return LeafTriangle(vec3_word(a), high_u32(a.y), vec3_word(b), high_u32(b.y), vec3_word(c), 0u);
 #else
+#if LEAF_TRIANGLE_PARTS > 1
+    return leaf_at(k);
+#else
     return leaf_triangles[k];
+#endif
 #endif
 }
 #endif

@@ -300,7 +300,7 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
             Ok(())
         })?;
         gpu.push(row("megakernel", stats.key.label(), wall, &stats.kernel_times));
-        if ctx.has_wavefront() {
+        if ctx.has_wavefront(&buffers) {
             let wf = Wavefront::new(ctx, buffers.clone(), key, frame)?;
             let (_, wf_stats) = wf.render(ctx, &|_, _| {})?;
             let mut progressive = PathAccumulator::with_kernels(ctx.clone(), buffers, frame, PathKernels::Wavefront)?;

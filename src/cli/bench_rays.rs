@@ -96,9 +96,12 @@ pub fn run(a: RaysArgs) -> Result<()> {
     if prims.bounded_count() == 0 {
         bail!("{}: nothing to aim rays at: the scene has no bounded primitive", a.scene.display());
     }
+    // The build: the binary tree and the layout the backend walks (the CPU's 8-wide tree, or
+    // the flattened scene with the GPU's collapsed tree), as Embree's build ends with its own.
     let start = Instant::now();
     let bvh = Bvh::build(&prims);
     let wide = (a.backend == BackendChoice::Cpu).then(|| WideBvh::new(&bvh, &prims));
+    let flat = wide.is_none().then(|| strahl::gpu_types::FlatScene::new(&scene, &prims, &bvh));
     let build_s = start.elapsed().as_secs_f64();
 
     let root = bvh.nodes[0];
@@ -115,8 +118,8 @@ pub fn run(a: RaysArgs) -> Result<()> {
     };
 
     let triangles = prims.triangles.len();
-    let (adapter, upload_s, structure_bytes, threads, times, hits) = match &wide {
-        Some(wide) => {
+    let (adapter, upload_s, structure_bytes, threads, times, hits) = match (&wide, flat) {
+        (Some(wide), _) => {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(a.threads.map_or(0, |t| t as usize))
                 .build()
@@ -131,11 +134,12 @@ pub fn run(a: RaysArgs) -> Result<()> {
             }
             (None, 0.0, wide.bytes() as u64, Some(threads), times, hits)
         }
-        None => {
+        (None, flat) => {
             if a.threads.is_some() {
                 bail!("--threads applies to --backend cpu only");
             }
-            let (adapter, upload_s, bytes, times, hits) = cast_gpu(&scene, &prims, &bvh, &rays, a.reps)?;
+            let flat = flat.expect("the GPU layout is built without the CPU's");
+            let (adapter, upload_s, bytes, times, hits) = cast_gpu(&flat, &rays, a.reps)?;
             (Some(adapter), upload_s, bytes, None, times, hits)
         }
     };
@@ -198,12 +202,11 @@ fn cast_cpu(wide: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], one_at_a
         .sum()
 }
 
-/// Uploads the scene and casts `rays` through `strahl trace`'s GPU path `reps` times:
-/// (adapter, upload seconds, bytes of the walk's nodes, triangles and references, times, hits).
+/// Uploads the flattened scene `gpu` and casts `rays` through `strahl trace`'s GPU path `reps`
+/// times: (adapter, upload seconds, bytes of the walk's nodes, triangles and references, times,
+/// hits).
 fn cast_gpu(
-    scene: &Scene,
-    prims: &Primitives<f32>,
-    bvh: &Bvh,
+    gpu: &strahl::gpu_types::FlatScene,
     rays: &[Ray<f32>],
     reps: u32,
 ) -> Result<(String, f64, u64, Vec<Duration>, usize)> {
@@ -211,8 +214,7 @@ fn cast_gpu(
     use strahl::query::RayQuery;
     let ctx = GpuContext::new()?;
     let start = Instant::now();
-    let gpu = strahl::gpu_types::FlatScene::new(scene, prims, bvh);
-    let buffers = SceneBuffers::upload(&ctx, &gpu)?;
+    let buffers = SceneBuffers::upload(&ctx, gpu)?;
     let upload_s = start.elapsed().as_secs_f64();
     // What the walk reads: nodes, leaf-order triangles and shape references.
     let bytes = std::mem::size_of_val(gpu.leaf_triangles.as_slice())

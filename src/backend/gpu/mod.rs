@@ -7,6 +7,7 @@ pub mod instance;
 pub mod render;
 pub mod shaders;
 pub mod shared;
+pub mod split;
 pub mod trace;
 pub mod wavefront;
 
@@ -14,6 +15,7 @@ pub use shaders::{FeatureKey, Program};
 
 use crate::accel::gpu_bvh::MAX_PRIMS;
 use crate::gpu_types::{FlatScene, FrameParams};
+use split::{Split, SplitArray};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -31,8 +33,25 @@ pub enum GpuError {
     Device(String),
     #[error(transparent)]
     Shader(#[from] shaders::ShaderError),
-    #[error("{what} needs {need} bytes, more than this adapter allows in one buffer ({limit} bytes)")]
-    TooLarge { what: String, need: u64, limit: u64 },
+    #[error("{what} needs {need} bytes, more than this adapter allows in one buffer ({limit} bytes, its {limit_name})")]
+    TooLarge { what: String, need: u64, limit: u64, limit_name: &'static str },
+    #[error(
+        "{what} needs {need} bytes: {parts} storage bindings of {part_bytes} bytes (the adapter's {limit_name} \
+         bounds one), more than the {max_parts} strahl splits one array into"
+    )]
+    TooManyParts {
+        what: &'static str,
+        need: u64,
+        parts: u64,
+        part_bytes: u64,
+        max_parts: u32,
+        limit_name: &'static str,
+    },
+    #[error(
+        "the scene's arrays, split across {extra} more storage bindings than usual, need {need} storage buffers \
+         per shader stage, more than this adapter allows ({limit}, its max_storage_buffers_per_shader_stage)"
+    )]
+    TooManyBindings { need: u32, extra: u32, limit: u32 },
     #[error("the scene has {count} spheres, cylinders and triangles; the GPU's BVH layout indexes at most {limit}")]
     TooManyPrimitives { count: usize, limit: usize },
     #[error("GPU error: {0}")]
@@ -44,7 +63,8 @@ pub enum GpuError {
 /// [`GpuContext::has_wavefront`]).
 const MIN_STORAGE_BUFFERS: u32 = SCENE_BINDINGS + 3;
 /// Bindings of group 0 (`shaders/modules/bindings.wgsl`): the frame and the scene's buffers, those of
-/// textures and the environment included.
+/// textures and the environment included; a scene whose arrays are split across several
+/// bindings has [`Split::extra_bindings`] more.
 pub const SCENE_BINDINGS: u32 = 16;
 
 /// How path tracing runs on a device: one kernel per sample pass that follows each path to its
@@ -80,7 +100,8 @@ pub struct GpuContext {
     pub timestamps: bool,
     /// [`FeatureKey::DEVICE`] flags this device supports, added to every pipeline's key.
     pub device_flags: u32,
-    scene_layout: wgpu::BindGroupLayout,
+    /// The layouts of group 0, by the scene's split (one for all scenes that split nothing).
+    scene_layouts: Mutex<HashMap<Split, wgpu::BindGroupLayout>>,
     render_layout: wgpu::BindGroupLayout,
     trace_layout: wgpu::BindGroupLayout,
     wavefront_layout: wgpu::BindGroupLayout,
@@ -142,12 +163,6 @@ impl GpuContext {
         let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let device_flags =
             if device.features().contains(wgpu::Features::SHADER_INT64) { FeatureKey::LOAD64 } else { 0 };
-        // Binding 0 is the frame: storage, not uniform (see shaders/modules/bindings.wgsl).
-        let scene_entries: Vec<_> = (0..SCENE_BINDINGS).map(|b| storage_entry(b, true)).collect();
-        let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("scene"),
-            entries: &scene_entries,
-        });
         let render_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("render output"),
             entries: &[storage_entry(0, false)],
@@ -168,7 +183,7 @@ impl GpuContext {
             limits,
             timestamps,
             device_flags,
-            scene_layout,
+            scene_layouts: Mutex::new(HashMap::new()),
             render_layout,
             trace_layout,
             wavefront_layout,
@@ -205,9 +220,10 @@ impl GpuContext {
             Program::Trace => &self.trace_layout,
             Program::Wavefront => &self.wavefront_layout,
         };
+        let scene_layout = self.scene_layout(Split::of_key(key));
         let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(entry),
-            bind_group_layouts: &[Some(&self.scene_layout), Some(io_layout)],
+            bind_group_layouts: &[Some(&scene_layout), Some(io_layout)],
             immediate_size: 0,
         });
         let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -223,6 +239,22 @@ impl GpuContext {
         Ok(cached)
     }
 
+    /// The layout of group 0 for scenes split as `split`: the frame and the scene's buffers
+    /// ([`SCENE_BINDINGS`]), and the bindings of the parts after the first of split arrays.
+    fn scene_layout(&self, split: Split) -> wgpu::BindGroupLayout {
+        let mut layouts = self.scene_layouts.lock().expect("scene layout lock");
+        let layout = layouts.entry(split).or_insert_with(|| {
+            // Binding 0 is the frame: storage, not uniform (see shaders/modules/bindings.wgsl).
+            let mut entries: Vec<_> = (0..SCENE_BINDINGS).map(|b| storage_entry(b, true)).collect();
+            for array in SplitArray::ALL {
+                entries.extend((1..split.parts(array)).map(|p| storage_entry(split::extra_binding(array, p), true)));
+            }
+            self.device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("scene"), entries: &entries })
+        });
+        layout.clone()
+    }
+
     /// The pipeline for `entry` of `program` specialised to `key` if it was compiled already.
     pub fn cached_pipeline(
         &self,
@@ -234,18 +266,20 @@ impl GpuContext {
         self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)).cloned()
     }
 
-    /// The path tracer this device runs best, as measured (`strahl bench` times both): on
+    /// The path tracer this device runs best for `scene`, as measured (`strahl bench` times both): on
     /// lavapipe before Mesa 25, which executes both sides of every branch for all eight lanes of
     /// its SIMD programs, the wavefront tracer, whose kernels carry only the code of their stage
     /// (Mesa 22.3.6: 1.6x the megakernel's samples per second on the seed scene); everywhere
     /// else the megakernel (Mesa 25.0.7, which skips branches no lane takes: 2.2x the wavefront
     /// tracer's; no other device measured yet). The environment variable
-    /// [`PATH_KERNELS_VAR`] (`megakernel` or `wavefront`) overrides the choice.
-    pub fn path_kernels(&self) -> Result<PathKernels, GpuError> {
+    /// [`PATH_KERNELS_VAR`] (`megakernel` or `wavefront`) overrides the choice. A scene whose
+    /// arrays take more bindings than the device has beside the wavefront tracer's runs the
+    /// megakernel.
+    pub fn path_kernels(&self, scene: &SceneBuffers) -> Result<PathKernels, GpuError> {
         if let Some(v) = std::env::var_os(PATH_KERNELS_VAR) {
             return match v.to_str() {
                 Some("megakernel") => Ok(PathKernels::Megakernel),
-                Some("wavefront") if self.has_wavefront() => Ok(PathKernels::Wavefront),
+                Some("wavefront") if self.has_wavefront(scene) => Ok(PathKernels::Wavefront),
                 Some("wavefront") => Err(GpuError::Device(format!(
                     "{PATH_KERNELS_VAR}=wavefront: this device binds too few storage buffers per stage for it"
                 ))),
@@ -257,12 +291,13 @@ impl GpuContext {
         }
         let info = &self.adapter_info;
         let old_lavapipe = info.driver == "llvmpipe" && mesa_major(&info.driver_info).is_some_and(|m| m < 25);
-        Ok(if old_lavapipe && self.has_wavefront() { PathKernels::Wavefront } else { PathKernels::Megakernel })
+        Ok(if old_lavapipe && self.has_wavefront(scene) { PathKernels::Wavefront } else { PathKernels::Megakernel })
     }
 
-    /// Whether this device binds enough storage buffers per stage for the wavefront path tracer.
-    pub fn has_wavefront(&self) -> bool {
-        self.limits.max_storage_buffers_per_shader_stage >= SCENE_BINDINGS + wavefront::BINDINGS
+    /// Whether this device binds enough storage buffers per stage for the wavefront path tracer
+    /// on `scene`.
+    pub fn has_wavefront(&self, scene: &SceneBuffers) -> bool {
+        self.limits.max_storage_buffers_per_shader_stage >= scene.bindings() + wavefront::BINDINGS
     }
 
     /// The variant of `program` this device compiles for a scene needing `key`.
@@ -282,14 +317,19 @@ impl GpuContext {
 
     /// The most bytes one storage buffer binding may hold on this adapter.
     pub fn max_binding_bytes(&self) -> u64 {
-        self.limits.max_storage_buffer_binding_size.min(self.limits.max_buffer_size)
+        split::binding_limit(&self.limits).0
+    }
+
+    /// The error for `what`, of `need` bytes, which does not fit one storage binding.
+    pub fn too_large(&self, what: impl Into<String>, need: u64) -> GpuError {
+        let (limit, limit_name) = split::binding_limit(&self.limits);
+        GpuError::TooLarge { what: what.into(), need, limit, limit_name }
     }
 
     /// Fails with a clear error before allocating when `bytes` exceed one storage binding.
     pub fn check_binding_size(&self, what: &str, bytes: u64) -> Result<(), GpuError> {
-        let limit = self.max_binding_bytes();
-        if bytes > limit {
-            return Err(GpuError::TooLarge { what: what.to_string(), need: bytes, limit });
+        if bytes > self.max_binding_bytes() {
+            return Err(self.too_large(what, bytes));
         }
         Ok(())
     }
@@ -356,6 +396,8 @@ fn mesa_major(driver_info: &str) -> Option<u32> {
 /// change per dispatch). Cloning shares the buffers.
 #[derive(Clone)]
 pub struct SceneBuffers {
+    /// The scene's features and the split of its arrays ([`split`]): the variants it runs
+    /// with contain the former and equal the latter ([`SceneBuffers::runs_with`]).
     pub key: FeatureKey,
     pub frame: wgpu::Buffer,
     pub bind_group: wgpu::BindGroup,
@@ -365,76 +407,111 @@ pub struct SceneBuffers {
 }
 
 impl SceneBuffers {
+    /// Uploads `g`, each array into one storage buffer, or where it exceeds one binding into
+    /// parts ([`Split::plan`]). Every size is checked before the first buffer is made, so that
+    /// a scene too large for the adapter's limits allocates nothing on the device.
     pub fn upload(ctx: &GpuContext, g: &FlatScene) -> Result<Self, GpuError> {
         if g.bounded_count() > MAX_PRIMS {
             return Err(GpuError::TooManyPrimitives { count: g.bounded_count(), limit: MAX_PRIMS });
         }
-        // Every array is checked before the first buffer is made, so that a scene too large
-        // for one binding allocates nothing on the device.
+        // In binding order, from 1 (0 is the frame).
         let arrays = [
             pod_array("spheres", &g.spheres),
             pod_array("cylinders", &g.cylinders),
             pod_array("planes", &g.planes),
-            pod_array("triangles", &g.triangles),
-            pod_array("BVH nodes", &g.nodes),
+            split_array(SplitArray::Triangles, &g.triangles),
+            split_array(SplitArray::Nodes, &g.nodes),
             pod_array("shape references", &g.shape_refs),
             pod_array("materials", &g.materials),
             pod_array("lights", &g.lights),
             pod_array("emitters", &g.emitters),
-            pod_array("leaf-order triangles", &g.leaf_triangles),
+            split_array(SplitArray::LeafTriangles, &g.leaf_triangles),
             pod_array("texture table", &g.textures),
             pod_array("texels (every image of the scene: textures and environment map)", &g.texels),
             pod_array("triangle texture coordinates", &g.triangle_uvs),
             pod_array("environment", &g.environment),
             pod_array("environment map distribution", &g.env_distribution),
         ];
-        for a in &arrays {
+        let bytes_of = |array| arrays.iter().find(|a| a.split == Some(array)).map_or(0, |a| a.bytes.len() as u64);
+        let split = Split::plan(&ctx.limits, SplitArray::ALL.map(bytes_of))?;
+        for a in arrays.iter().filter(|a| a.split.is_none()) {
             ctx.check_binding_size(a.what, a.bytes.len() as u64)?;
         }
-        let buffers = arrays.map(|a| ctx.storage_bytes(a.what, a.bytes, a.element));
         let frame = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
             size: std::mem::size_of::<FrameParams>() as u64,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: frame.as_entire_binding() }];
-        entries.extend(
-            buffers
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: b.as_entire_binding() }),
-        );
+        // (binding, buffer): every array's first part (or whole) at its binding, later parts
+        // at theirs.
+        let mut buffers = vec![(0, frame.clone())];
+        for (i, a) in arrays.iter().enumerate() {
+            let binding = i as u32 + 1;
+            let Some(array) = a.split else {
+                buffers.push((binding, ctx.storage_bytes(a.what, a.bytes, a.element)));
+                continue;
+            };
+            for (p, part) in split.cut(array, a.bytes).into_iter().enumerate() {
+                let binding = if p == 0 { binding } else { split::extra_binding(array, p as u32) };
+                buffers.push((binding, ctx.storage_bytes(a.what, part, a.element)));
+            }
+        }
+        let entries: Vec<_> = buffers
+            .iter()
+            .map(|(binding, b)| wgpu::BindGroupEntry { binding: *binding, resource: b.as_entire_binding() })
+            .collect();
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("scene"),
-            layout: &ctx.scene_layout,
+            layout: &ctx.scene_layout(split),
             entries: &entries,
         });
         Ok(Self {
-            key: FeatureKey::for_scene(g),
+            key: FeatureKey(FeatureKey::for_scene(g).0 | split.key_bits()),
             frame,
             bind_group,
-            bytes: buffers.iter().map(|b| b.size()).sum(),
+            bytes: buffers[1..].iter().map(|(_, b)| b.size()).sum(),
             has_bvh: !g.nodes.is_empty(),
         })
     }
 
+    /// How the scene's large arrays are split across bindings.
+    pub fn split(&self) -> Split {
+        Split::of_key(self.key)
+    }
+
+    /// Storage buffers group 0 binds for this scene.
+    pub fn bindings(&self) -> u32 {
+        SCENE_BINDINGS + self.split().extra_bindings()
+    }
+
     /// Whether a variant compiled with `key` can run on this scene: it must contain every
-    /// feature the scene uses, and walk a BVH only if the scene has one.
+    /// feature the scene uses, read the scene's arrays split as they are, and walk a BVH only
+    /// if the scene has one.
     pub fn runs_with(&self, key: FeatureKey) -> bool {
-        (key.0 & self.key.0) == self.key.0 && (!key.has(FeatureKey::BVH) || self.has_bvh)
+        let features = |k: FeatureKey| k.0 & !FeatureKey::SPLIT;
+        (features(key) & features(self.key)) == features(self.key)
+            && Split::of_key(key) == self.split()
+            && (!key.has(FeatureKey::BVH) || self.has_bvh)
     }
 }
 
-/// One scene array as bytes, named for errors, with its element size.
+/// One scene array as bytes, named for errors, with its element size, and which it is where
+/// it may be split across bindings.
 struct PodArray<'a> {
     what: &'static str,
     bytes: &'a [u8],
     element: usize,
+    split: Option<SplitArray>,
 }
 
 fn pod_array<'a, T: bytemuck::Pod>(what: &'static str, data: &'a [T]) -> PodArray<'a> {
-    PodArray { what, bytes: bytemuck::cast_slice(data), element: std::mem::size_of::<T>() }
+    PodArray { what, bytes: bytemuck::cast_slice(data), element: std::mem::size_of::<T>(), split: None }
+}
+
+fn split_array<T: bytemuck::Pod>(array: SplitArray, data: &[T]) -> PodArray<'_> {
+    debug_assert_eq!(std::mem::size_of::<T>() as u64, array.element_bytes());
+    PodArray { split: Some(array), ..pod_array(array.what(), data) }
 }
 
 #[cfg(test)]

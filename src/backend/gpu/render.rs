@@ -76,7 +76,7 @@ pub fn render_region(
     progress: &dyn Fn(u64, u64),
 ) -> Result<(Image, RenderStats), GpuError> {
     assert!(scene.runs_with(key), "variant {} cannot render a scene needing {}", key.label(), scene.key.label());
-    if mode == RenderMode::Path && ctx.path_kernels()? == PathKernels::Wavefront {
+    if mode == RenderMode::Path && ctx.path_kernels(scene)? == PathKernels::Wavefront {
         let wf = Wavefront::for_region(ctx, scene.clone(), key, *frame, region)?;
         return wf.render(ctx, progress);
     }
@@ -112,7 +112,7 @@ pub fn render_tiles(
     let lead = region.x0 as u64 * PIXEL_BYTES;
     let limit = ctx.max_binding_bytes();
     if row_bytes + lead > limit {
-        return Err(GpuError::TooLarge { what: format!("one {w}-pixel image row"), need: row_bytes + lead, limit });
+        return Err(ctx.too_large(format!("one {w}-pixel image row"), row_bytes + lead));
     }
     let mut band_rows = ((limit - lead) / row_bytes).min(h as u64) as u32;
     if band_rows < h && band_rows >= TILE {
@@ -208,7 +208,7 @@ impl PathAccumulator {
     /// kernels this device runs best. Fails, before allocating, when the image does not fit one
     /// storage binding.
     pub fn new(ctx: Arc<GpuContext>, scene: SceneBuffers, frame: FrameParams) -> Result<Self, GpuError> {
-        let kernels = ctx.path_kernels()?;
+        let kernels = ctx.path_kernels(&scene)?;
         Self::with_kernels(ctx, scene, frame, kernels)
     }
 

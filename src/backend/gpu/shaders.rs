@@ -60,7 +60,10 @@ impl Program {
     }
 }
 
-/// Which code a scene needs. Each flag is a shader def of the same name.
+/// Which code a scene needs. Each flag is a shader def of the same name; the bits above the
+/// flags ([`FeatureKey::SPLIT`]) say how the scene's largest arrays are split across bindings
+/// ([`super::split`]), as the defs `TRIANGLE_PARTS`, `NODE_PARTS`, `LEAF_TRIANGLE_PARTS` and
+/// the elements per part.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct FeatureKey(pub u32);
 
@@ -104,9 +107,12 @@ impl FeatureKey {
     ];
     /// Flags that describe the device rather than the scene.
     pub const DEVICE: u32 = Self::LOAD64;
+    /// The split of the scene's arrays across bindings ([`super::split::Split`]): not a flag,
+    /// set only where an array exceeds one binding.
+    pub const SPLIT: u32 = super::split::MASK;
     /// Flags that change the trace program (it has no shading code).
     pub const GEOMETRY: u32 =
-        Self::SPHERES | Self::CYLINDERS | Self::TRIANGLES | Self::PLANES | Self::BVH | Self::DEVICE;
+        Self::SPHERES | Self::CYLINDERS | Self::TRIANGLES | Self::PLANES | Self::BVH | Self::DEVICE | Self::SPLIT;
     /// Flags of the textures and the environment, which only the shading programs (render,
     /// path) read.
     pub const ASSETS: u32 = Self::TEXTURES | Self::ENVIRONMENT | Self::ENV_MAP;
@@ -204,13 +210,30 @@ impl FeatureKey {
         if self.has(Self::TEXTURES | Self::ENV_MAP) {
             defs.insert("TEXELS".into(), ShaderDefValue::Bool(true));
         }
+        // Parts per splittable array (1: whole), defined for every key (the shaders compare
+        // them), and the elements per part where there are several.
+        let split = super::split::Split::of_key(self);
+        for array in super::split::SplitArray::ALL {
+            let (parts, per_part) = array.defs();
+            defs.insert(parts.into(), ShaderDefValue::UInt(split.parts(array)));
+            if split.parts(array) > 1 {
+                defs.insert(per_part.into(), ShaderDefValue::UInt(split.per_part(array)));
+            }
+        }
         defs
     }
 
-    /// Readable form, e.g. `SPHERES+BVH+POINT_LIGHTS`.
+    /// Readable form, e.g. `SPHERES+BVH+POINT_LIGHTS`, with the split where there is one
+    /// (`TRIANGLES+BVH+TRIANGLE_PARTS=2+NODE_PARTS=1+LEAF_TRIANGLE_PARTS=2 of 134217728 bytes`).
     pub fn label(self) -> String {
-        let names: Vec<&str> =
-            (0..Self::FLAG_COUNT).filter(|i| self.0 & (1 << i) != 0).map(|i| Self::NAMES[i as usize]).collect();
+        let mut names: Vec<String> = (0..Self::FLAG_COUNT)
+            .filter(|i| self.0 & (1 << i) != 0)
+            .map(|i| Self::NAMES[i as usize].to_string())
+            .collect();
+        let split = super::split::Split::of_key(self);
+        if split.is_split() {
+            names.push(split.label());
+        }
         if names.is_empty() { "EMPTY".into() } else { names.join("+") }
     }
 }
@@ -348,6 +371,90 @@ mod tests {
             })
             .collect();
         assert!(failures.is_empty(), "{} variants fail, first: {}", failures.len(), failures[0]);
+    }
+
+    /// Splits of every array alone into 2, 3 and 4 parts, and of all three into 2 and 4, with
+    /// the geometry of a mesh and with every feature, with and without 64-bit loads.
+    fn split_keys() -> Vec<FeatureKey> {
+        use super::super::split::Split;
+        let mut splits = vec![[2, 2, 2], [4, 4, 4]];
+        for i in 0..3 {
+            splits.extend((2..=4).map(|p| {
+                let mut s = [1; 3];
+                s[i] = p;
+                s
+            }));
+        }
+        let mesh = FeatureKey::TRIANGLES | FeatureKey::BVH | FeatureKey::POINT_LIGHTS;
+        let mut keys = Vec::new();
+        for parts in splits {
+            let bits = Split::with_parts(parts, 27).key_bits();
+            for base in [mesh, FeatureKey::ALL.0] {
+                keys.extend([FeatureKey(base | bits), FeatureKey(base | bits | FeatureKey::LOAD64)]);
+            }
+        }
+        keys
+    }
+
+    #[test]
+    fn every_split_composes_and_validates() {
+        use rayon::prelude::*;
+        let failures: Vec<String> = split_keys()
+            .into_par_iter()
+            .flat_map_iter(|key| {
+                [Program::Render, Program::Path, Program::Wavefront, Program::Trace, Program::View]
+                    .into_iter()
+                    .filter_map(move |p| match compose(p, key) {
+                        Ok(m) => validate(p, key, &m).err().map(|e| e.to_string()),
+                        Err(e) => Some(format!("{}: {e}", key.label())),
+                    })
+            })
+            .collect();
+        assert!(failures.is_empty(), "{} variants fail, first: {}", failures.len(), failures[0]);
+    }
+
+    /// A split variant declares each part after the first at the binding the host binds it
+    /// to (split::extra_binding), and reads parts only through the part-selecting functions;
+    /// an unsplit variant contains none of them.
+    #[test]
+    fn parts_are_declared_where_the_host_binds_them_and_only_in_split_variants() {
+        use super::super::split::{Split, SplitArray, extra_binding};
+        let names = |a: SplitArray| match a {
+            SplitArray::Triangles => "triangles",
+            SplitArray::Nodes => "nodes",
+            SplitArray::LeafTriangles => "leaf_triangles",
+        };
+        for load64 in [0, FeatureKey::LOAD64] {
+            let split = FeatureKey(FeatureKey::ALL.0 | load64 | Split::with_parts([4, 4, 4], 27).key_bits());
+            let m = compose(Program::Path, split).unwrap();
+            let bindings: HashMap<String, u32> = m
+                .global_variables
+                .iter()
+                .filter_map(|(_, g)| {
+                    let name = g.name.as_deref()?.split("X_naga_oil_mod_X").next()?.to_string();
+                    Some((name, g.binding.as_ref()?.binding))
+                })
+                .collect();
+            for array in SplitArray::ALL {
+                for p in 1..super::super::split::MAX_PARTS {
+                    let name = format!("{}_{p}", names(array));
+                    assert_eq!(bindings.get(&name), Some(&extra_binding(array, p)), "{name}");
+                }
+            }
+            let text = to_wgsl(&m, &validate(Program::Path, split, &m).unwrap());
+            let unsplit = FeatureKey(FeatureKey::ALL.0 | load64);
+            let plain = compose(Program::Path, unsplit).unwrap();
+            let plain_text = to_wgsl(&plain, &validate(Program::Path, unsplit, &plain).unwrap());
+            let selectors: &[&str] = if load64 != 0 {
+                &["scene_triangle", "node_word", "leaf_word"]
+            } else {
+                &["scene_triangle", "node_at", "leaf_at"]
+            };
+            for f in selectors.iter().chain(&["triangles_1", "nodes_1", "leaf_triangles_1"]) {
+                assert!(text.contains(f), "{f} missing from the split variant");
+                assert!(!plain_text.contains(f), "{f} in the unsplit variant");
+            }
+        }
     }
 
     /// The key read from a scene equals the key of its flattened buffers, for every shipped

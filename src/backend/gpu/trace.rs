@@ -66,11 +66,7 @@ pub fn trace(
             let total: u64 = counts.iter().map(|&c| c as u64).sum();
             if total * HIT_BYTES > limit {
                 if batch.len() == 1 {
-                    return Err(GpuError::TooLarge {
-                        what: "the hits of one ray".into(),
-                        need: total * HIT_BYTES,
-                        limit,
-                    });
+                    return Err(ctx.too_large("the hits of one ray", total * HIT_BYTES));
                 }
                 let (a, b) = batch.split_at(batch.len() / 2);
                 pending.push(b);

@@ -98,10 +98,10 @@ impl Wavefront {
         region: Region,
     ) -> Result<Self, GpuError> {
         assert!(region.fits(frame.width, frame.height), "region {region} of a {}x{} image", frame.width, frame.height);
-        if !ctx.has_wavefront() {
+        if !ctx.has_wavefront(&scene) {
             return Err(GpuError::Device(format!(
                 "the wavefront path tracer needs {} storage buffers per shader stage, this device offers {}",
-                super::SCENE_BINDINGS + BINDINGS,
+                scene.bindings() + BINDINGS,
                 ctx.limits.max_storage_buffers_per_shader_stage
             )));
         }
@@ -313,11 +313,10 @@ impl Wavefront {
     pub fn check_whole_image(&self, ctx: &GpuContext) -> Result<(), GpuError> {
         if self.band_rows < self.frame.height {
             let widest = PATH_BYTES.iter().map(|&(_, b)| b).max().unwrap_or(1);
-            return Err(GpuError::TooLarge {
-                what: format!("the wavefront state of the {}x{} image", self.frame.width, self.frame.height),
-                need: widest * self.frame.width as u64 * self.frame.height as u64,
-                limit: ctx.max_binding_bytes(),
-            });
+            return Err(ctx.too_large(
+                format!("the wavefront state of the {}x{} image", self.frame.width, self.frame.height),
+                widest * self.frame.width as u64 * self.frame.height as u64,
+            ));
         }
         Ok(())
     }
