@@ -50,8 +50,8 @@ struct Entry {
     mask: u32,
 }
 
-/// What [`RayPre`] holds for one ray, for the eight rays of a packet, one lane each, computed
-/// with the same operations (so lane for lane the same values).
+/// What [`super::simd::RayPre`] holds for one ray, for the eight rays of a packet, one lane
+/// each, computed with the same operations (so lane for lane the same values).
 struct Lanes {
     org_near: [__m256; 3],
     org_far: [__m256; 3],
