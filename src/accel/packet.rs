@@ -146,7 +146,7 @@ impl Lanes {
 /// the rays are not [`coherent`].
 ///
 /// # Safety
-/// The CPU must have AVX2.
+/// The CPU must have AVX2 and FMA ([`super::simd::has_avx2`] checks both).
 #[target_feature(enable = "avx2,fma")]
 pub unsafe fn nearest_packet(
     w: &WideBvh,
