@@ -63,17 +63,18 @@
 #endif
 #endif
 #ifdef BVH
-// With LOAD64 the nodes and leaf triangles are read as 64-bit words (strahl::traverse::fetch_node).
+// With LOAD64 the nodes and leaf triangles are read as 64-bit words (strahl::traverse::fetch_node):
+// a node as two 32-byte reads, a leaf triangle as three 16-byte reads.
 #ifdef LOAD64
-@group(0) @binding(5) var<storage, read> nodes: array<vec2<u64>>;
+@group(0) @binding(5) var<storage, read> nodes: array<vec4<u64>>;
 #if NODE_PARTS > 1
-@group(0) @binding(19) var<storage, read> nodes_1: array<vec2<u64>>;
+@group(0) @binding(19) var<storage, read> nodes_1: array<vec4<u64>>;
 #endif
 #if NODE_PARTS > 2
-@group(0) @binding(20) var<storage, read> nodes_2: array<vec2<u64>>;
+@group(0) @binding(20) var<storage, read> nodes_2: array<vec4<u64>>;
 #endif
 #if NODE_PARTS > 3
-@group(0) @binding(21) var<storage, read> nodes_3: array<vec2<u64>>;
+@group(0) @binding(21) var<storage, read> nodes_3: array<vec4<u64>>;
 #endif
 #else
 @group(0) @binding(5) var<storage, read> nodes: array<Node>;

@@ -446,7 +446,7 @@ mod tests {
             let plain = compose(Program::Path, unsplit).unwrap();
             let plain_text = to_wgsl(&plain, &validate(Program::Path, unsplit, &plain).unwrap());
             let selectors: &[&str] = if load64 != 0 {
-                &["scene_triangle", "node_word", "leaf_word"]
+                &["scene_triangle", "node_half", "leaf_word"]
             } else {
                 &["scene_triangle", "node_at", "leaf_at"]
             };
