@@ -12,13 +12,15 @@
 //!   backend.
 //!
 //! Frame times are medians of `--frames` frames after one untimed frame, wall clock, on both
-//! backends. Ratios are measured in one run: compare them, not absolute times, across machines
-//! (here the second CPU core comes and goes). Without a Vulkan adapter the CPU alone is
+//! backends, the rows of a table timed in turns (one frame of each per round). Ratios are
+//! measured in one run: compare them, not absolute times, across machines (here the second CPU
+//! core comes and goes). Without a Vulkan adapter the CPU alone is
 //! measured. `--json` prints one JSON object instead of the tables.
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use serde_json::{Value, json};
+use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -143,17 +145,33 @@ fn compile_in_child(scene: &Path, key: FeatureKey) -> Result<Duration> {
     Ok(Duration::from_secs_f64(secs))
 }
 
-/// Median wall time of `frames` calls of `f` after one untimed call.
-fn median_time(frames: u32, mut f: impl FnMut() -> Result<()>) -> Result<Duration> {
-    f()?;
-    let mut times = Vec::with_capacity(frames as usize);
-    for _ in 0..frames {
-        let start = Instant::now();
+/// One frame of one row of a table: a closure that renders it.
+type Frame<'a> = Box<dyn FnMut() -> Result<()> + 'a>;
+
+/// Median wall time of `frames` calls of each of `rows`, after one untimed call of each, the
+/// rows taken in turns (row 0, row 1, .., row 0, ..): on a machine whose speed drifts (here the
+/// second core comes and goes for minutes), every row then meets the same slow and fast spells
+/// and their ratios hold, where timing all frames of one row before the next would compare
+/// different spells.
+fn median_times(frames: u32, rows: &mut [Frame<'_>]) -> Result<Vec<Duration>> {
+    for f in rows.iter_mut() {
         f()?;
-        times.push(start.elapsed());
     }
-    times.sort();
-    Ok(times[times.len() / 2])
+    let mut times = vec![Vec::with_capacity(frames as usize); rows.len()];
+    for _ in 0..frames {
+        for (f, t) in rows.iter_mut().zip(&mut times) {
+            let start = Instant::now();
+            f()?;
+            t.push(start.elapsed());
+        }
+    }
+    Ok(times
+        .into_iter()
+        .map(|mut t| {
+            t.sort();
+            t[t.len() / 2]
+        })
+        .collect())
 }
 
 /// "1.52x faster" or "2.10x slower": `ratio` is the first rate over the second.
@@ -226,37 +244,57 @@ fn bench_whitted(
 ) -> Result<Value> {
     let frame = prep.frame(w, h);
     let rays = w as f64 * h as f64 * frame.spp as f64;
-    let mut gpu = Vec::new();
-    if let Some(ctx) = ctx {
-        let buffers = SceneBuffers::upload(ctx, &prep.gpu)?;
-        let mut variants = vec![("specialised", buffers.key)];
+    let buffers = match ctx {
+        Some(ctx) => Some(SceneBuffers::upload(ctx, &prep.gpu)?),
+        None => None,
+    };
+    let mut variants = Vec::new();
+    if let Some(buffers) = &buffers {
+        variants.push(("specialised", buffers.key));
         if buffers.key != FeatureKey::ALL && buffers.runs_with(FeatureKey::ALL) {
             variants.push(("all features", FeatureKey::ALL));
         }
-        for (variant, key) in variants {
+    }
+    // Per GPU row, the GPU time of each of its frames (timestamp queries).
+    let gpu_times: Vec<RefCell<Vec<Duration>>> = variants.iter().map(|_| RefCell::default()).collect();
+    let mut gpu = Vec::new();
+    // The GPU rows (each compiled before any timing), then the CPU backend's; timed in turns.
+    let mut rows: Vec<Frame<'_>> = Vec::new();
+    if let (Some(ctx), Some(buffers)) = (ctx, &buffers) {
+        for (&(variant, key), times) in variants.iter().zip(&gpu_times) {
             let compile = if a.no_compile { None } else { Some(compile_in_child(path, key)?.as_secs_f64()) };
-            first_dispatch(ctx, &buffers, prep, key)?;
-            let mut gpu_times = Vec::new();
-            let wall = median_time(a.frames, || {
-                let (_, stats) = render(ctx, &buffers, &frame, RenderMode::Whitted, key, &|_, _| {})?;
-                gpu_times.extend(stats.gpu_time);
-                Ok(())
-            })?;
-            gpu_times.sort();
+            first_dispatch(ctx, buffers, prep, key)?;
             gpu.push(json!({
                 "variant": variant,
                 "features": ctx.variant(strahl::backend::gpu::Program::Render, key).label(),
                 "compile_s": compile,
-                "frame_s": wall.as_secs_f64(),
-                "gpu_time_s": gpu_times.get(gpu_times.len() / 2).map(Duration::as_secs_f64),
-                "mrays_per_s": rays / wall.as_secs_f64() / 1e6,
+            }));
+            let frame = &frame;
+            rows.push(Box::new(move || {
+                let (_, stats) = render(ctx, buffers, frame, RenderMode::Whitted, key, &|_, _| {})?;
+                times.borrow_mut().extend(stats.gpu_time);
+                Ok(())
             }));
         }
     }
-    let cpu = median_time(a.frames, || {
+    rows.push(Box::new(|| {
         strahl::backend::cpu::render(prep, &frame, RenderMode::Whitted, &|_| {});
         Ok(())
-    })?;
+    }));
+    let walls = median_times(a.frames, &mut rows)?;
+    drop(rows);
+    for ((row, wall), times) in gpu.iter_mut().zip(&walls).zip(&gpu_times) {
+        let mut times = times.take();
+        // The untimed first frame is left out here too.
+        if !times.is_empty() {
+            times.remove(0);
+        }
+        times.sort();
+        row["frame_s"] = json!(wall.as_secs_f64());
+        row["gpu_time_s"] = json!(times.get(times.len() / 2).map(Duration::as_secs_f64));
+        row["mrays_per_s"] = json!(rays / wall.as_secs_f64() / 1e6);
+    }
+    let cpu = walls[walls.len() - 1];
     Ok(json!({
         "spp": frame.spp,
         "gpu": gpu,
@@ -270,7 +308,6 @@ fn bench_whitted(
 fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: u32, h: u32) -> Result<Value> {
     let frame = FrameParams { spp: a.spp, ..prep.frame(w, h) };
     let samples = w as f64 * h as f64 * a.spp as f64;
-    let mut gpu = Vec::new();
     let row = |kernels: &str, features: String, wall: Duration, times: &[(&str, Duration)]| {
         let kernel_times: serde_json::Map<String, Value> =
             times.iter().map(|(k, t)| (k.to_string(), json!(t.as_secs_f64()))).collect();
@@ -282,6 +319,10 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
             "kernel_time_s": kernel_times,
         })
     };
+    // The GPU tracers (pipelines compiled and kernels timed once before), then the CPU backend;
+    // frames timed in turns.
+    let mut labels = Vec::new();
+    let mut rows: Vec<Frame<'_>> = Vec::new();
     if let Some(ctx) = ctx {
         let buffers = SceneBuffers::upload(ctx, &prep.gpu)?;
         let key = buffers.key;
@@ -294,28 +335,34 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
         let (_, stats) = render_tiles(ctx, &buffers, &frame, RenderMode::Path, key, whole, &|_, _| {})?;
         let mut progressive =
             PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Megakernel)?;
-        let wall = median_time(a.frames, || {
+        labels.push(("megakernel", stats.key.label(), stats.kernel_times));
+        rows.push(Box::new(move || {
             progressive.reset();
-            progressive.add_samples(a.spp)?;
-            Ok(())
-        })?;
-        gpu.push(row("megakernel", stats.key.label(), wall, &stats.kernel_times));
+            Ok(progressive.add_samples(a.spp)?)
+        }));
         if ctx.has_wavefront(&buffers) {
             let wf = Wavefront::new(ctx, buffers.clone(), key, frame)?;
             let (_, wf_stats) = wf.render(ctx, &|_, _| {})?;
             let mut progressive = PathAccumulator::with_kernels(ctx.clone(), buffers, frame, PathKernels::Wavefront)?;
-            let wall = median_time(a.frames, || {
+            labels.push(("wavefront", wf.key().label(), wf_stats.kernel_times));
+            rows.push(Box::new(move || {
                 progressive.reset();
-                progressive.add_samples(a.spp)?;
-                Ok(())
-            })?;
-            gpu.push(row("wavefront", wf.key().label(), wall, &wf_stats.kernel_times));
+                Ok(progressive.add_samples(a.spp)?)
+            }));
         }
     }
-    let cpu = median_time(a.frames, || {
+    rows.push(Box::new(|| {
         strahl::backend::cpu::render(prep, &frame, RenderMode::Path, &|_| {});
         Ok(())
-    })?;
+    }));
+    let walls = median_times(a.frames, &mut rows)?;
+    drop(rows);
+    let gpu: Vec<Value> = labels
+        .into_iter()
+        .zip(&walls)
+        .map(|((kernels, features, times), &wall)| row(kernels, features, wall, &times))
+        .collect();
+    let cpu = walls[walls.len() - 1];
     Ok(json!({
         "spp": a.spp,
         "max_depth": frame.max_depth,
@@ -337,7 +384,10 @@ fn print_report(r: &Value) {
             a["timestamps"]
         ),
     }
-    println!("cpu backend: {} threads; frame times: median wall time of the frames after the first", r["cpu_threads"]);
+    println!(
+        "cpu backend: {} threads; frame times: median wall time of the frames after the first, the rows of a table timed in turns",
+        r["cpu_threads"]
+    );
     let f = |v: &Value, scale: f64, digits: usize| {
         v.as_f64().map_or("-".to_string(), |x| format!("{:.*}", digits, x * scale))
     };
@@ -430,6 +480,30 @@ mod tests {
         assert_eq!(faster_or_slower(1.5), "1.50x faster");
         assert_eq!(faster_or_slower(0.5), "2.00x slower");
         assert_eq!(faster_or_slower(1.0), "1.00x faster");
+    }
+
+    #[test]
+    fn rows_are_timed_in_turns_after_one_untimed_frame_each() {
+        let calls = RefCell::new(Vec::new());
+        let mut rows: Vec<Frame<'_>> = (0..3)
+            .map(|i| {
+                let calls = &calls;
+                Box::new(move || {
+                    calls.borrow_mut().push(i);
+                    Ok(())
+                }) as Frame<'_>
+            })
+            .collect();
+        let medians = median_times(2, &mut rows).unwrap();
+        assert_eq!(medians.len(), 3);
+        assert_eq!(*calls.borrow(), [0, 1, 2, 0, 1, 2, 0, 1, 2]);
+    }
+
+    #[test]
+    fn a_failing_row_ends_the_measurement() {
+        let mut rows: Vec<Frame<'_>> = vec![Box::new(|| Ok(())), Box::new(|| bail!("device lost"))];
+        let e = median_times(3, &mut rows).unwrap_err();
+        assert!(e.to_string().contains("device lost"), "{e}");
     }
 
     #[test]
