@@ -14,8 +14,8 @@
 //! Frame times are medians of `--frames` frames after one untimed frame, wall clock, on both
 //! backends, the rows of a table timed in turns (one frame of each per round). Ratios are
 //! measured in one run: compare them, not absolute times, across machines (here the second CPU
-//! core comes and goes). Without a Vulkan adapter the CPU alone is
-//! measured. `--json` prints one JSON object instead of the tables.
+//! core comes and goes). Without a Vulkan adapter the CPU alone is measured. `--json` prints
+//! one JSON object instead of the tables.
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand, ValueEnum};
