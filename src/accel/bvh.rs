@@ -49,8 +49,16 @@ pub struct Bvh {
     pub depth: u32,
 }
 
-/// Deepest tree the build makes; the traversal stacks hold this many (the GPU's more, for the
-/// levels [`super::gpu_bvh`] adds).
+/// Deepest tree the build makes (nodes on a root-to-leaf path, the root and the leaf counted);
+/// the traversal stacks hold this many (the GPU's one more, for the level
+/// [`super::gpu_bvh`] adds where a leaf mixes kinds).
+///
+/// The bound holds by construction, with small leaves: a node at depth `d` over `n` primitives
+/// is split at its median whenever `d` plus the halvings that bring `n` down to [`MAX_LEAF`]
+/// ([`levels_to_leaf`]) reaches the bound, so the SAH never leaves more to a subtree than
+/// halving can finish within it, and every leaf holds at most `SMALL` primitives (12; at the
+/// bound itself, at most [`MAX_LEAF`]). Only pathological inputs (primitives whose sizes or
+/// positions grow geometrically, which SAH peels off one by one) get there.
 pub const MAX_DEPTH: u32 = 48;
 /// Bins per axis for nodes of at least this many primitives; smaller nodes use one bin per
 /// primitive, so that the sweep costs no more than the binning pass.
@@ -652,14 +660,36 @@ fn decide_tiny(items: &mut [Item], span: &Span) -> Decision {
     Decision::Split { mid, left: Span::of(&items[..mid]), right: Span::of(&items[mid..]) }
 }
 
-/// Chooses between a leaf and the best split of `items`; `scratch` holds the bins.
+/// How many halvings bring `n` primitives down to at most [`MAX_LEAF`]: ceil(log2(ceil(n / 4))).
+fn levels_to_leaf(n: usize) -> u32 {
+    n.div_ceil(MAX_LEAF).next_power_of_two().trailing_zeros()
+}
+
+/// The split of `items` at the median of their centroids on the axis where the centroids
+/// spread widest: the halves differ by at most one, so each needs one level fewer
+/// ([`levels_to_leaf`]).
+fn median_split(items: &mut [Item], span: &Span) -> Decision {
+    let (clo, chi) = (span.centroids.lo.to_array(), span.centroids.hi.to_array());
+    let axis = (0..3).max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b]))).unwrap_or(0);
+    let key = |it: &Item| it.lo[axis] + it.hi[axis];
+    let mid = items.len() / 2;
+    items.select_nth_unstable_by(mid, |a, b| key(a).total_cmp(&key(b)));
+    Decision::Split { mid, left: Span::of(&items[..mid]), right: Span::of(&items[mid..]) }
+}
+
+/// Chooses between a leaf and the best split of `items` at `depth`; `scratch` holds the bins.
 fn decide(items: &mut [Item], span: &Span, depth: u32, scratch: &mut Bins) -> Decision {
     let n = items.len();
-    if n <= 1 || depth >= MAX_DEPTH {
+    if n <= 1 {
         return Decision::Leaf;
     }
     if n <= MAX_LEAF {
-        return decide_tiny(items, span);
+        // At the depth bound a leaf, else the best split of a few.
+        return if depth >= MAX_DEPTH { Decision::Leaf } else { decide_tiny(items, span) };
+    }
+    // No slack left below: halve, so the subtree ends within MAX_DEPTH (see there).
+    if depth + levels_to_leaf(n) >= MAX_DEPTH {
+        return median_split(items, span);
     }
     if n <= SMALL {
         return decide_small(items, span);
@@ -677,14 +707,12 @@ fn decide(items: &mut [Item], span: &Span, depth: u32, scratch: &mut Bins) -> De
         binning.fill_into(items, scratch);
         scratch
     };
+    // Nodes this large (more than SMALL primitives) are always split.
     match bins.best(&binning, span.bounds.half_area()) {
-        // Stay a leaf when no split pays for itself, if the leaf is small enough.
-        Some((_, _, cost)) if n <= MAX_LEAF && cost >= n as f32 => Decision::Leaf,
         Some((axis, split, _)) => {
             let (mid, left, right) = partition(items, &binning, axis, split);
             Decision::Split { mid, left, right }
         }
-        None if n <= MAX_LEAF => Decision::Leaf,
         // All centroids coincide: split the list in halves.
         None => {
             let mid = n / 2;
@@ -898,6 +926,64 @@ mod tests {
             p.triangles.push(Tagged { shape: tri.cast(), tag: Tag { object: 0, face: i as u32, material: 0 } });
         }
         p
+    }
+
+    /// The deepest leaf and the most primitives in one leaf (in any, and in a leaf at the
+    /// depth bound).
+    fn leaf_stats(bvh: &Bvh) -> (u32, u32, u32) {
+        let (mut deepest, mut largest, mut largest_at_bound) = (0, 0, 0);
+        let mut stack = vec![(0usize, 1u32)];
+        while let Some((i, d)) = stack.pop() {
+            let n = &bvh.nodes[i];
+            if n.is_leaf() {
+                deepest = deepest.max(d);
+                largest = largest.max(n.count);
+                if d == MAX_DEPTH {
+                    largest_at_bound = largest_at_bound.max(n.count);
+                }
+            } else {
+                stack.extend([(i + 1, d + 1), (n.left_or_first as usize, d + 1)]);
+            }
+        }
+        (deepest, largest, largest_at_bound)
+    }
+
+    /// A chain that SAH peels off one primitive at a time, ending in identical triangles
+    /// ([`crate::scene::procedural::deep_chain_triangles`]): the tree stays within MAX_DEPTH
+    /// with small leaves, and its walk returns what brute force does. (Before the bound was
+    /// kept by construction, the chain of 43 over 3000 copies reached depth 48 with a leaf of
+    /// 94 primitives there, which the GPU's collapse split into three more levels.)
+    #[test]
+    fn a_pathologically_deep_input_keeps_the_depth_bound_with_small_leaves() {
+        for (chain, cluster) in [(43, 0), (43, 100), (43, 3000), (30, 100_000)] {
+            let mut prims = Primitives::<f64>::default();
+            for (i, t) in crate::scene::procedural::deep_chain_triangles(chain, cluster).into_iter().enumerate() {
+                prims.triangles.push(Tagged { shape: t, tag: Tag { object: 0, face: i as u32, material: 0 } });
+            }
+            let prims: Primitives<f32> = prims.cast();
+            let bvh = Bvh::build(&prims);
+            let (deepest, largest, at_bound) = leaf_stats(&bvh);
+            eprintln!(
+                "chain {chain}, cluster {cluster}: depth {deepest}, leaves up to {largest}, at the bound {at_bound}"
+            );
+            assert!(deepest <= MAX_DEPTH && bvh.depth == deepest, "depth {deepest} (recorded {})", bvh.depth);
+            assert!(
+                largest as usize <= SMALL && at_bound as usize <= MAX_LEAF,
+                "leaves of {largest}, {at_bound} at the bound"
+            );
+            let mut rng = TestRng(9);
+            for _ in 0..200 {
+                // In the plane x = 0 the rays enter the boxes of the whole chain; off it, some.
+                let x = if rng.unit() < 0.5 { 0.0 } else { rng.range(0.0, 1.0).powi(20) };
+                let o = V3::new(x, rng.range(0.0, 1.0), -1.0);
+                let ray =
+                    crate::math::Ray::new(o.cast(), (V3::new(x, rng.range(0.0, 1.0), 1.0) - o).normalize().cast());
+                assert_eq!(
+                    super::super::traverse::nearest(&bvh, &prims, &ray, 0.0, f32::INFINITY),
+                    prims.nearest_brute(&ray, 0.0, f32::INFINITY)
+                );
+            }
+        }
     }
 
     #[test]

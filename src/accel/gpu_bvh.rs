@@ -8,9 +8,9 @@
 //! of traversal, and this layout makes fewer and smaller ones.
 //!
 //! [`nearest`] and [`all`] walk it exactly as `shaders/modules/traverse.wgsl` and `shaders/trace.wgsl`
-//! do, so a GPU/CPU difference can be bisected to the traversal; the CPU renderer itself walks
-//! the binary tree ([`super::traverse`]). Both return exactly what brute force returns (the tie
-//! rule of [`Nearest`] makes the visiting order irrelevant).
+//! do, so a GPU/CPU difference can be bisected to the traversal; the CPU renderers themselves
+//! walk the 8-wide tree ([`super::wide_traverse`]). All return exactly what brute force returns
+//! (the tie rule of [`Nearest`] makes the visiting order irrelevant).
 
 use super::bvh::Bvh;
 use super::traverse::safe_inverse;
@@ -36,9 +36,12 @@ pub const LINK_FIRST_MASK: u32 = (1 << LINK_COUNT_SHIFT) - 1;
 pub const LINK_EMPTY: u32 = u32::MAX;
 /// The most primitives (triangles, or spheres and cylinders) the layout indexes.
 pub const MAX_PRIMS: usize = LINK_FIRST_MASK as usize - LEAF_MAX;
-/// Deepest tree the traversal stack holds (`GPU_STACK` in `shaders/modules/traverse.wgsl`): the binary
-/// tree's [`super::bvh::MAX_DEPTH`] plus the levels the collapse may add below a leaf.
-pub const MAX_DEPTH: u32 = 64;
+/// Deepest collapsed tree (nodes on a root-to-leaf path), and the length of the traversal
+/// stack (`GPU_STACK` in `shaders/modules/traverse.wgsl`), which holds at most one entry per
+/// inner node of the path: the binary tree's [`super::bvh::MAX_DEPTH`], whose leaves hold at
+/// most 12 primitives (fewer than [`LEAF_MAX`]), plus the one level the collapse adds where a
+/// leaf mixes triangles with spheres or cylinders. [`GpuBvh::collapse`] refuses a deeper tree.
+pub const MAX_DEPTH: u32 = super::bvh::MAX_DEPTH + 1;
 
 /// One node: the boxes and links of its two children (a and b), 64 bytes, the layout of
 /// `Node` in `shaders/modules/types.wgsl`.
@@ -115,6 +118,8 @@ impl Link {
 pub enum CollapseError {
     #[error("the scene has {0} primitives in its BVH, more than the GPU layout indexes ({MAX_PRIMS})")]
     TooMany(usize),
+    #[error("the scene's BVH is {0} levels deep, more than the GPU's traversal stack holds ({MAX_DEPTH})")]
+    TooDeep(u32),
 }
 
 struct Collapse<'a> {
@@ -224,7 +229,11 @@ impl GpuBvh {
         } else {
             c.inner(0, 1);
         }
-        debug_assert!(c.out.depth <= MAX_DEPTH);
+        // The build bounds the depth (see MAX_DEPTH); a tree from anywhere else is checked, as
+        // the shaders' stack has no room past it.
+        if c.out.depth > MAX_DEPTH {
+            return Err(CollapseError::TooDeep(c.out.depth));
+        }
         Ok(c.out)
     }
 

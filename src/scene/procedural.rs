@@ -76,6 +76,37 @@ pub fn torus_scene(ntris: usize) -> Scene {
     mesh_scene(triangles, PathBuf::from(format!("bumpy_torus_{}", 2 * nu * nv)), camera, image)
 }
 
+/// A pathological input for BVH builders: a chain of `chain` triangles in the plane z = 1,
+/// `(0, 0) (2^−60 · 17^k, 0) (0, 1)` (at most 43: the widest 2^111.7, so that an area times
+/// a count stays finite in f32, the narrowest with a normal whose square does too), each 17
+/// times as wide as the one before, and `cluster` more
+/// copies of the narrowest. Their boxes are nested, and the SAH's 16 bins tell their centroids
+/// apart only for the widest, which it peels off one at every level; the copies cannot be told
+/// apart at all. Without a bound on its depth the tree grows as deep as the chain is long and
+/// ends in one leaf holding the copies. A ray in the plane x = 0 enters both children at every
+/// level.
+pub fn deep_chain_triangles(chain: usize, cluster: usize) -> Vec<Triangle<f64>> {
+    assert!((1..=43).contains(&chain), "the chain's widest triangle is 2^−60 · 17^(chain − 1) wide, at most 2^111.7");
+    let width = |k: usize| 2f64.powi(-60) * 17f64.powi(k as i32);
+    let tri = |x: f64| Triangle { v: [V3::new(0.0, 0.0, 1.0), V3::new(x, 0.0, 1.0), V3::new(0.0, 1.0, 1.0)] };
+    let mut tris = vec![tri(width(0)); cluster];
+    tris.extend((0..chain).map(|k| tri(width(k))));
+    tris
+}
+
+/// [`deep_chain_triangles`] as a scene seen from (0.3, 0.4, −1), looking along +z, `width` ×
+/// `height` pixels.
+pub fn deep_chain_scene(chain: usize, cluster: usize, width: u32, height: u32) -> Scene {
+    let camera = Camera {
+        eye: V3::new(0.3, 0.4, -1.0),
+        look_at: V3::new(0.3, 0.4, 1.0),
+        up: V3::new(0.0, 1.0, 0.0),
+        fov_y: 60.0,
+    };
+    let tris = deep_chain_triangles(chain, cluster);
+    mesh_scene(tris, PathBuf::from("deep_chain"), camera, ImageSize { width, height })
+}
+
 /// The camera file `embree_bench.py --export-obj` writes as `NAME_camera.json` beside
 /// `NAME.obj`.
 #[derive(serde::Deserialize)]
