@@ -489,7 +489,7 @@ impl ViewRenderer {
             },
             wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
         );
-        self.ctx.queue.submit([enc.finish()]);
+        self.ctx.submit("reading the display", enc)?;
         let bytes = self.ctx.read_buffer(&buf, buf.size())?;
         let mut rows = Vec::with_capacity((w * h * 4) as usize);
         for y in 0..h as usize {

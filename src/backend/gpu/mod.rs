@@ -17,6 +17,7 @@ use crate::accel::gpu_bvh::MAX_PRIMS;
 use crate::gpu_types::{FlatScene, FrameParams};
 use split::{Split, SplitArray};
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
@@ -56,6 +57,37 @@ pub enum GpuError {
     TooManyPrimitives { count: usize, limit: usize },
     #[error("GPU error: {0}")]
     Wgpu(String),
+    #[error("{what}: the GPU ran out of memory")]
+    OutOfMemory { what: String },
+    #[error("the GPU device was lost: {0}")]
+    Lost(String),
+    #[error("the scene's BVH has no GPU layout: it is deeper than the GPU's traversal stack holds ({limit} levels)")]
+    TooDeep { limit: u32 },
+}
+
+/// What the device reports outside any error scope, and its loss: recorded here instead of
+/// reaching wgpu's default handler, which panics, and returned as an error by the next
+/// [`GpuContext::scoped`] call.
+#[derive(Default)]
+struct Faults {
+    uncaptured: Mutex<Option<String>>,
+    lost: Mutex<Option<String>>,
+}
+
+impl Faults {
+    fn record(slot: &Mutex<Option<String>>, message: String) {
+        slot.lock().unwrap_or_else(|e| e.into_inner()).get_or_insert(message);
+    }
+
+    fn check(&self) -> Result<(), GpuError> {
+        if let Some(m) = self.lost.lock().unwrap_or_else(|e| e.into_inner()).clone() {
+            return Err(GpuError::Lost(m));
+        }
+        if let Some(m) = self.uncaptured.lock().unwrap_or_else(|e| e.into_inner()).take() {
+            return Err(GpuError::Wgpu(m));
+        }
+        Ok(())
+    }
 }
 
 /// Storage buffers a stage binds: the scene's 16 and the trace program's 3 (the wavefront path
@@ -81,6 +113,9 @@ pub const PATH_KERNELS_VAR: &str = "STRAHL_PATH_KERNELS";
 
 /// A pipeline is specialised by its program, the scene's features and its entry point.
 type PipelineKey = (Program, FeatureKey, &'static str);
+/// A cache entry: empty until its pipeline is compiled, locked while it compiles, so that a
+/// second thread asking for the same variant waits for it instead of compiling it again.
+type PipelineSlot = Arc<Mutex<Option<Arc<CachedPipeline>>>>;
 
 /// A compiled pipeline and what compiling it cost.
 pub struct CachedPipeline {
@@ -105,7 +140,10 @@ pub struct GpuContext {
     render_layout: wgpu::BindGroupLayout,
     trace_layout: wgpu::BindGroupLayout,
     wavefront_layout: wgpu::BindGroupLayout,
-    pipelines: Mutex<HashMap<PipelineKey, Arc<CachedPipeline>>>,
+    pipelines: Mutex<HashMap<PipelineKey, PipelineSlot>>,
+    /// Pipelines compiled so far.
+    compiled: AtomicU32,
+    faults: Arc<Faults>,
 }
 
 fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -160,6 +198,15 @@ impl GpuContext {
                 limits.max_storage_buffers_per_shader_stage
             )));
         }
+        let faults = Arc::new(Faults::default());
+        let f = faults.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| Faults::record(&f.uncaptured, e.to_string())));
+        let f = faults.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            if reason != wgpu::DeviceLostReason::Destroyed {
+                Faults::record(&f.lost, message);
+            }
+        });
         let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let device_flags =
             if device.features().contains(wgpu::Features::SHADER_INT64) { FeatureKey::LOAD64 } else { 0 };
@@ -188,7 +235,55 @@ impl GpuContext {
             trace_layout,
             wavefront_layout,
             pipelines: Mutex::new(HashMap::new()),
+            compiled: AtomicU32::new(0),
+            faults,
         })
+    }
+
+    /// Runs `f`, work on the device, inside error scopes: a validation, out-of-memory or
+    /// internal error it causes is returned as the error of `what`, instead of reaching wgpu's
+    /// default handler (which panics). A device lost before, or an error reported outside any
+    /// scope since the last call, is returned too.
+    pub fn scoped<T>(&self, what: &str, f: impl FnOnce() -> T) -> Result<T, GpuError> {
+        self.faults.check()?;
+        let scopes = [wgpu::ErrorFilter::Internal, wgpu::ErrorFilter::OutOfMemory, wgpu::ErrorFilter::Validation]
+            .map(|filter| self.device.push_error_scope(filter));
+        let out = f();
+        // Popped in the reverse order of their pushing; the first error caught is reported.
+        let mut caught = None;
+        for scope in scopes.into_iter().rev() {
+            if let Some(e) = pollster::block_on(scope.pop()) {
+                caught.get_or_insert(e);
+            }
+        }
+        match caught {
+            Some(wgpu::Error::OutOfMemory { .. }) => Err(GpuError::OutOfMemory { what: what.to_string() }),
+            Some(e) => Err(GpuError::Wgpu(format!("{what}: {}", e.to_string().trim_end()))),
+            None => self.faults.check().map(|()| out),
+        }
+    }
+
+    /// The device's loss, or an error it reported outside any scope since the last call (the
+    /// viewer's per-frame work, which is not waited for, is checked so).
+    pub fn check(&self) -> Result<(), GpuError> {
+        self.faults.check()
+    }
+
+    /// Submits the commands of `enc` (scoped: see [`GpuContext::scoped`]).
+    pub fn submit(&self, what: &str, enc: wgpu::CommandEncoder) -> Result<wgpu::SubmissionIndex, GpuError> {
+        self.scoped(what, || self.queue.submit([enc.finish()]))
+    }
+
+    /// Waits for the submitted work to finish; a lost device is an error.
+    pub fn wait(&self) -> Result<(), GpuError> {
+        let polled = self.device.poll(wgpu::PollType::wait_indefinitely());
+        self.faults.check()?;
+        polled.map(|_| ()).map_err(|e| GpuError::Wgpu(e.to_string()))
+    }
+
+    /// How many pipelines this context has compiled.
+    pub fn pipelines_compiled(&self) -> u32 {
+        self.compiled.load(Ordering::Relaxed)
     }
 
     /// "name (backend, driver)".
@@ -205,38 +300,52 @@ impl GpuContext {
         entry: &'static str,
     ) -> Result<Arc<CachedPipeline>, GpuError> {
         let key = self.variant(program, key);
-        if let Some(p) = self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)) {
+        let slot =
+            self.pipelines.lock().expect("pipeline cache lock").entry((program, key, entry)).or_default().clone();
+        let mut slot = slot.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = &*slot {
             return Ok(p.clone());
         }
+        let cached = Arc::new(self.compile(program, key, entry)?);
+        self.compiled.fetch_add(1, Ordering::Relaxed);
+        *slot = Some(cached.clone());
+        Ok(cached)
+    }
+
+    /// Composes and compiles the pipeline of `entry` for the variant `key`. wgpu validates the
+    /// composed module (the one validation on this path; the tests validate every variant).
+    fn compile(&self, program: Program, key: FeatureKey, entry: &'static str) -> Result<CachedPipeline, GpuError> {
         let start = Instant::now();
         let module = shaders::compose(program, key)?;
-        shaders::validate(program, key, &module)?;
-        let shader = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(entry),
-            source: wgpu::ShaderSource::Naga(std::borrow::Cow::Owned(module)),
-        });
+        let what = format!("the {program:?} shader {entry} for {}", key.label());
+        let shader = self.scoped(&what, || {
+            self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(entry),
+                source: wgpu::ShaderSource::Naga(std::borrow::Cow::Owned(module)),
+            })
+        })?;
         let io_layout = match program {
             Program::Render | Program::Path | Program::View => &self.render_layout,
             Program::Trace => &self.trace_layout,
             Program::Wavefront => &self.wavefront_layout,
         };
         let scene_layout = self.scene_layout(Split::of_key(key));
-        let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(entry),
-            bind_group_layouts: &[Some(&scene_layout), Some(io_layout)],
-            immediate_size: 0,
-        });
-        let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(entry),
-            layout: Some(&layout),
-            module: &shader,
-            entry_point: Some(entry),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        let cached = Arc::new(CachedPipeline { pipeline, key, compile_time: start.elapsed() });
-        self.pipelines.lock().expect("pipeline cache lock").insert((program, key, entry), cached.clone());
-        Ok(cached)
+        let pipeline = self.scoped(&format!("the pipeline of {what}"), || {
+            let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(entry),
+                bind_group_layouts: &[Some(&scene_layout), Some(io_layout)],
+                immediate_size: 0,
+            });
+            self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&layout),
+                module: &shader,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        })?;
+        Ok(CachedPipeline { pipeline, key, compile_time: start.elapsed() })
     }
 
     /// The layout of group 0 for scenes split as `split`: the frame and the scene's buffers
@@ -255,7 +364,8 @@ impl GpuContext {
         layout.clone()
     }
 
-    /// The pipeline for `entry` of `program` specialised to `key` if it was compiled already.
+    /// The pipeline for `entry` of `program` specialised to `key` if it was compiled already
+    /// (None while another thread compiles it: this never waits).
     pub fn cached_pipeline(
         &self,
         program: Program,
@@ -263,15 +373,16 @@ impl GpuContext {
         entry: &'static str,
     ) -> Option<Arc<CachedPipeline>> {
         let key = self.variant(program, key);
-        self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)).cloned()
+        let slot = self.pipelines.lock().expect("pipeline cache lock").get(&(program, key, entry)).cloned()?;
+        slot.try_lock().ok()?.clone()
     }
 
     /// The path tracer this device runs best for `scene`, as measured (`strahl bench` times both): on
     /// lavapipe before Mesa 25, which executes both sides of every branch for all eight lanes of
     /// its SIMD programs, the wavefront tracer, whose kernels carry only the code of their stage
-    /// (Mesa 22.3.6: 1.6x the megakernel's samples per second on the seed scene); everywhere
-    /// else the megakernel (Mesa 25.0.7, which skips branches no lane takes: 2.2x the wavefront
-    /// tracer's; no other device measured yet). The environment variable
+    /// (faster there on the seed scene); everywhere else the megakernel (faster on Mesa 25.0.7,
+    /// which skips branches no lane takes; no other device measured yet). The runs and their
+    /// ratios are in the README ("Path tracing, two ways"). The environment variable
     /// [`PATH_KERNELS_VAR`] (`megakernel` or `wavefront`) overrides the choice. A scene whose
     /// arrays take more bindings than the device has beside the wavefront tracer's runs the
     /// megakernel.
@@ -338,7 +449,7 @@ impl GpuContext {
     /// (NaN floats), which no intersection routine can hit, for variants that still bind it.
     pub fn storage_buffer<T: bytemuck::Pod>(&self, what: &str, data: &[T]) -> Result<wgpu::Buffer, GpuError> {
         self.check_binding_size(what, std::mem::size_of_val(data) as u64)?;
-        Ok(self.storage_bytes(what, bytemuck::cast_slice(data), std::mem::size_of::<T>()))
+        self.scoped(what, || self.storage_bytes(what, bytemuck::cast_slice(data), std::mem::size_of::<T>()))
     }
 
     /// [`GpuContext::storage_buffer`] over bytes already checked against the binding limit;
@@ -364,21 +475,23 @@ impl GpuContext {
         if size == 0 {
             return Ok(Vec::new());
         }
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let staging = self.scoped("the readback buffer", || {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("readback"),
+                size,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        })?;
         let mut enc = self.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
-        self.queue.submit([enc.finish()]);
+        self.submit("reading back a result", enc)?;
         let slice = staging.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });
-        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Wgpu(e.to_string()))?;
+        self.wait()?;
         rx.recv().map_err(|e| GpuError::Wgpu(e.to_string()))?.map_err(|e| GpuError::Wgpu(e.to_string()))?;
         let data = slice.get_mapped_range().map_err(|e| GpuError::Wgpu(e.to_string()))?.to_vec();
         staging.unmap();
@@ -414,6 +527,11 @@ impl SceneBuffers {
         if g.bounded_count() > MAX_PRIMS {
             return Err(GpuError::TooManyPrimitives { count: g.bounded_count(), limit: MAX_PRIMS });
         }
+        // The only other collapse failure (accel::gpu_bvh::CollapseError): a tree deeper than
+        // the shaders' traversal stack, which the build rules out.
+        if g.nodes.is_empty() && g.bounded_count() > FeatureKey::BRUTE_FORCE_MAX {
+            return Err(GpuError::TooDeep { limit: crate::accel::gpu_bvh::MAX_DEPTH });
+        }
         // In binding order, from 1 (0 is the frame).
         let arrays = [
             pod_array("spheres", &g.spheres),
@@ -437,6 +555,11 @@ impl SceneBuffers {
         for a in arrays.iter().filter(|a| a.split.is_none()) {
             ctx.check_binding_size(a.what, a.bytes.len() as u64)?;
         }
+        ctx.scoped("uploading the scene", || Self::create(ctx, g, &arrays, split))
+    }
+
+    /// The buffers and bind group of [`SceneBuffers::upload`], whose sizes it checked.
+    fn create(ctx: &GpuContext, g: &FlatScene, arrays: &[PodArray], split: Split) -> Self {
         let frame = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
             size: std::mem::size_of::<FrameParams>() as u64,
@@ -466,13 +589,13 @@ impl SceneBuffers {
             layout: &ctx.scene_layout(split),
             entries: &entries,
         });
-        Ok(Self {
+        Self {
             key: FeatureKey(FeatureKey::for_scene(g).0 | split.key_bits()),
             frame,
             bind_group,
             bytes: buffers[1..].iter().map(|(_, b)| b.size()).sum(),
             has_bvh: !g.nodes.is_empty(),
-        })
+        }
     }
 
     /// How the scene's large arrays are split across bindings.

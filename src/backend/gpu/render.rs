@@ -155,14 +155,14 @@ pub fn render_tiles(
             if let Some(t) = &timer {
                 t.resolve(&mut enc, n_tiles);
             }
-            ctx.queue.submit([enc.finish()]);
+            ctx.submit("a sample pass", enc)?;
             if let Some(t) = &timer {
                 gpu_ns += t.read(ctx, n_tiles)?;
             }
             if step == 0 {
                 // Wait for the first pass alone: where the driver compiles at the first
                 // dispatch, this is where the compile shows.
-                ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Wgpu(e.to_string()))?;
+                ctx.wait()?;
                 stats.first_pass = start.elapsed();
             }
             stats.dispatches += n_tiles;
@@ -259,7 +259,7 @@ impl PathAccumulator {
     /// Adds samples `samples() .. samples() + n` to every pixel and waits for the GPU.
     pub fn add_samples(&mut self, n: u32) -> Result<(), GpuError> {
         match &self.kernels {
-            AccumulatorKernels::Wavefront(wf) => wf.submit_passes(&self.ctx, self.samples, n),
+            AccumulatorKernels::Wavefront(wf) => wf.submit_passes(&self.ctx, self.samples, n)?,
             AccumulatorKernels::Megakernel { scene, pipeline, out_group, .. } => {
                 let band = Band::whole(self.frame.width, self.frame.height, TILE);
                 for k in 0..n {
@@ -277,11 +277,11 @@ impl PathAccumulator {
                         self.samples + k > 0,
                         None,
                     );
-                    self.ctx.queue.submit([enc.finish()]);
+                    self.ctx.submit("a sample pass", enc)?;
                 }
             }
         }
-        self.ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Wgpu(e.to_string()))?;
+        self.ctx.wait()?;
         self.samples += n;
         Ok(())
     }

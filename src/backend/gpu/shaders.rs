@@ -250,9 +250,10 @@ pub enum ShaderError {
     Validate { program: Program, key: String, message: String },
 }
 
-fn compose_error(e: &ComposerError) -> String {
-    // naga_oil's errors need the sources to print spans; keep its own message.
-    format!("{e:?}")
+/// naga_oil's message for `e`, located in the source it names (file, line, column and the
+/// line itself), its decorated names undone.
+fn compose_error(e: &ComposerError, composer: &Composer) -> String {
+    e.emit_to_string(composer).trim_end().to_string()
 }
 
 /// The text of shader `file` (a path like `shaders/modules/types.wgsl`) with the shared
@@ -280,9 +281,12 @@ pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, Shader
         defs.insert("COUNT_VISITS".into(), ShaderDefValue::Bool(true));
     }
     let mut composer = Composer::default().with_capabilities(CAPABILITIES);
+    // The composed module is validated once, where it is used: by wgpu when the pipeline is
+    // created, and by `validate` in the tests, which cover every variant.
+    composer.validate = false;
     for (file, src) in MODULES {
         let src = source_text(file, src)?;
-        composer
+        let added = composer
             .add_composable_module(ComposableModuleDescriptor {
                 source: &src,
                 file_path: file,
@@ -290,19 +294,19 @@ pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, Shader
                 shader_defs: defs.clone(),
                 ..Default::default()
             })
-            .map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e) })?;
+            .map(|_| ());
+        added.map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e, &composer) })?;
     }
     let (file, src) = program.source();
     let src = source_text(file, src)?;
-    composer
-        .make_naga_module(NagaModuleDescriptor {
-            source: &src,
-            file_path: file,
-            shader_type: ShaderType::Wgsl,
-            shader_defs: defs,
-            ..Default::default()
-        })
-        .map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e) })
+    let module = composer.make_naga_module(NagaModuleDescriptor {
+        source: &src,
+        file_path: file,
+        shader_type: ShaderType::Wgsl,
+        shader_defs: defs,
+        ..Default::default()
+    });
+    module.map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e, &composer) })
 }
 
 /// Validates a composed module with every check naga has; returns its module info.
@@ -316,7 +320,8 @@ pub fn validate(
         .map_err(|e| ShaderError::Validate { program, key: key.label(), message: format!("{:?}", e.into_inner()) })
 }
 
-/// The composed module as WGSL text (for inspection and tests).
+/// The composed module as WGSL text (for inspection in tests).
+#[cfg(test)]
 pub fn to_wgsl(module: &naga::Module, info: &naga::valid::ModuleInfo) -> String {
     naga::back::wgsl::write_string(module, info, naga::back::wgsl::WriterFlags::empty())
         .unwrap_or_else(|e| format!("// cannot print this module as WGSL: {e}"))
@@ -457,18 +462,73 @@ mod tests {
         }
     }
 
+    /// Scenes with what no shipped scene has, written to `dir`: an image texture on a mesh, an
+    /// emission texture, an environment map, a constant environment, and emissive objects
+    /// alone (lit in Whitted mode by their stand-in point lights).
+    fn asset_scenes(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+        image::RgbImage::from_fn(4, 4, |x, y| image::Rgb([(x * 60) as u8, (y * 60) as u8, 90]))
+            .save(dir.join("checker.png"))
+            .unwrap();
+        image::Rgb32FImage::from_fn(8, 4, |x, _| image::Rgb([0.2, 0.3, x as f32])).save(dir.join("sky.exr")).unwrap();
+        let obj =
+            "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+        std::fs::write(dir.join("quad.obj"), obj).unwrap();
+        let head = "[camera]\neye = [0.0, 1.0, -4.0]\nlook_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 50.0\n\
+                    [image]\nwidth = 8\nheight = 6\n";
+        let sphere = "[[objects]]\ntype = \"sphere\"\ncenter = [0.0, 0.5, 0.0]\nradius = 0.5\nmaterial = \"m\"\n";
+        let quad =
+            |material: &str| format!("[[objects]]\ntype = \"mesh\"\nfile = \"quad.obj\"\nmaterial = \"{material}\"\n");
+        let light = "[[lights]]\ntype = \"point\"\nposition = [0.0, 3.0, 0.0]\nintensity = [5.0, 5.0, 5.0]\n";
+        let scenes = [
+            (
+                "textured.toml",
+                format!(
+                    "{head}[[materials]]\nname = \"m\"\ntype = \"diffuse\"\ntexture = \"checker.png\"\n\
+                     [[materials]]\nname = \"glow\"\ntype = \"emissive\"\nradiance = [2.0, 2.0, 2.0]\n\
+                     radiance_texture = \"checker.png\"\n{}{light}[environment]\nfile = \"sky.exr\"\n",
+                    quad("m") + &quad("glow")
+                ),
+            ),
+            (
+                "constant_sky.toml",
+                format!(
+                    "{head}[[materials]]\nname = \"m\"\ntype = \"mirror\"\n{sphere}{light}[environment]\nradiance = [0.5, 0.6, 0.7]\n"
+                ),
+            ),
+            (
+                "emitters_only.toml",
+                format!(
+                    "{head}[[materials]]\nname = \"m\"\ntype = \"emissive\"\nradiance = [4.0, 4.0, 4.0]\n{sphere}{}",
+                    quad("m")
+                ),
+            ),
+        ];
+        scenes
+            .into_iter()
+            .map(|(name, text)| {
+                let path = dir.join(name);
+                std::fs::write(&path, text).unwrap();
+                path
+            })
+            .collect()
+    }
+
     /// The key read from a scene equals the key of its flattened buffers, for every shipped
-    /// scene and for the viewer's way of keying a scene while objects are hidden.
+    /// scene, for scenes with textures and environments, and for the viewer's way of keying a
+    /// scene while objects are hidden.
     #[test]
     fn the_key_of_a_scene_is_the_key_of_its_buffers() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+        let assets = tempfile::tempdir().unwrap();
+        let mut paths: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
+        paths.extend(asset_scenes(assets.path()));
         let mut seen = 0;
-        for e in std::fs::read_dir(&dir).unwrap() {
-            let path = e.unwrap().path();
+        let mut flags = 0;
+        for path in paths {
             if path.extension().is_none_or(|x| x != "toml") {
                 continue;
             }
-            let scene = crate::scene::Scene::load(&path).unwrap();
+            let scene = crate::scene::Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
             let prep = crate::render::Prepared::new(scene.clone());
             assert_eq!(
                 FeatureKey::of_scene(&scene, &prep.prims),
@@ -476,9 +536,18 @@ mod tests {
                 "{}",
                 path.display()
             );
+            flags |= FeatureKey::for_scene(&prep.gpu).0;
             seen += 1;
         }
-        assert!(seen >= 8, "only {seen} scenes");
+        assert!(seen >= 11, "only {seen} scenes");
+        // Every scene flag was met by some scene.
+        let scene_flags = FeatureKey::ALL.0;
+        assert_eq!(
+            flags & scene_flags,
+            scene_flags,
+            "flags no scene had: {}",
+            FeatureKey(scene_flags & !flags).label()
+        );
     }
 
     #[test]

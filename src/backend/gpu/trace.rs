@@ -61,7 +61,7 @@ pub fn trace(
             // Pass 1: count, then exclusive offsets on the host.
             let counts_buf = rw_buffer(ctx, "hit counts", n * 4)?;
             let dummy = rw_buffer(ctx, "no hits", HIT_BYTES)?;
-            dispatch(ctx, &first.pipeline, scene, &ray_buf, &dummy, &counts_buf, n);
+            dispatch(ctx, &first.pipeline, scene, &ray_buf, &dummy, &counts_buf, n)?;
             let counts: Vec<u32> = ctx.read_pod(&counts_buf, n as usize)?;
             let total: u64 = counts.iter().map(|&c| c as u64).sum();
             if total * HIT_BYTES > limit {
@@ -81,7 +81,7 @@ pub fn trace(
             }
             ctx.queue.write_buffer(&counts_buf, 0, bytemuck::cast_slice(&offsets));
             let hits_buf = rw_buffer(ctx, "hits", (total * HIT_BYTES).max(HIT_BYTES))?;
-            dispatch(ctx, &write_all.pipeline, scene, &ray_buf, &hits_buf, &counts_buf, n);
+            dispatch(ctx, &write_all.pipeline, scene, &ray_buf, &hits_buf, &counts_buf, n)?;
             let hits: Vec<GpuQueryHit> = ctx.read_pod(&hits_buf, total as usize)?;
             for (i, &c) in counts.iter().enumerate() {
                 let o = offsets[i] as usize;
@@ -90,7 +90,7 @@ pub fn trace(
         } else {
             let hits_buf = rw_buffer(ctx, "hits", n * HIT_BYTES)?;
             let dummy = rw_buffer(ctx, "no offsets", 4)?;
-            dispatch(ctx, &first.pipeline, scene, &ray_buf, &hits_buf, &dummy, n);
+            dispatch(ctx, &first.pipeline, scene, &ray_buf, &hits_buf, &dummy, n)?;
             let hits: Vec<GpuQueryHit> = ctx.read_pod(&hits_buf, n as usize)?;
             out.extend(hits.iter().map(|h| if h.flags & QUERY_FOUND != 0 { vec![from_gpu(h)] } else { Vec::new() }));
         }
@@ -100,12 +100,14 @@ pub fn trace(
 
 fn rw_buffer(ctx: &GpuContext, what: &str, size: u64) -> Result<wgpu::Buffer, GpuError> {
     ctx.check_binding_size(what, size)?;
-    Ok(ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(what),
-        size,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    }))
+    ctx.scoped(what, || {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(what),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    })
 }
 
 fn dispatch(
@@ -116,7 +118,7 @@ fn dispatch(
     hits: &wgpu::Buffer,
     offsets: &wgpu::Buffer,
     n: u64,
-) {
+) -> Result<(), GpuError> {
     let io = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("trace io"),
         layout: &ctx.trace_layout,
@@ -134,7 +136,8 @@ fn dispatch(
         pass.set_bind_group(1, &io, &[]);
         pass.dispatch_workgroups(n.div_ceil(WORKGROUP) as u32, 1, 1);
     }
-    ctx.queue.submit([enc.finish()]);
+    ctx.submit("a ray query", enc)?;
+    Ok(())
 }
 
 /// Spawned rays on the GPU, the twin of [`crate::backend::cpu::trace_spawn`]: per pair, the
@@ -164,7 +167,7 @@ pub fn trace_spawn(
         let ray_buf = ctx.storage_buffer("spawn rays", &rays)?;
         let hits_buf = rw_buffer(ctx, "spawn hits", n * HIT_BYTES)?;
         let dummy = rw_buffer(ctx, "no offsets", 4)?;
-        dispatch(ctx, &pipe.pipeline, scene, &ray_buf, &hits_buf, &dummy, batch.len() as u64);
+        dispatch(ctx, &pipe.pipeline, scene, &ray_buf, &hits_buf, &dummy, batch.len() as u64)?;
         let hits: Vec<GpuQueryHit> = ctx.read_pod(&hits_buf, n as usize)?;
         let get = |h: &GpuQueryHit| (h.flags & QUERY_FOUND != 0).then(|| from_gpu(h));
         out.extend(hits.chunks(2).map(|p| (get(&p[0]), get(&p[1]))));

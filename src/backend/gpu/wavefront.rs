@@ -275,7 +275,7 @@ impl Wavefront {
                 if let Some(t) = &timer {
                     t.resolve(&mut enc, kernels.len() as u32);
                 }
-                ctx.queue.submit([enc.finish()]);
+                ctx.submit("a wavefront sample pass", enc)?;
                 if let Some(t) = &timer {
                     for (k, ns) in kernels.iter().zip(t.read_each(ctx, kernels.len() as u32)?) {
                         kernel_ns[*k] += ns;
@@ -284,7 +284,7 @@ impl Wavefront {
                 if stats.passes == 0 {
                     // Wait for the first pass alone: where the driver compiles at the first
                     // dispatch, this is where the compile shows.
-                    ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Wgpu(e.to_string()))?;
+                    ctx.wait()?;
                     stats.first_pass = start.elapsed();
                 }
                 stats.passes += 1;
@@ -323,12 +323,13 @@ impl Wavefront {
 
     /// Submits sample passes `first .. first + n` over the whole image (one band), adding to
     /// the sums unless `first` is 0; does not wait.
-    pub fn submit_passes(&self, ctx: &GpuContext, first: u32, n: u32) {
+    pub fn submit_passes(&self, ctx: &GpuContext, first: u32, n: u32) -> Result<(), GpuError> {
         for s in first..first + n {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
             self.record_pass(ctx, &mut enc, 0, self.frame.height, s, s > 0, None);
-            ctx.queue.submit([enc.finish()]);
+            ctx.submit("a wavefront sample pass", enc)?;
         }
+        Ok(())
     }
 
     /// The whole image's sums (one band).
