@@ -59,6 +59,13 @@ pub struct NoViewer {
     args: Vec<String>,
 }
 
+impl Command {
+    /// Whether the command shows a window (and so may present to a display).
+    pub fn presents(&self) -> bool {
+        matches!(self, Command::View(_))
+    }
+}
+
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Render(a) => render::run(a),
@@ -149,6 +156,28 @@ pub fn open_backend(flag: Option<BackendChoice>, workload: Workload) -> anyhow::
     Ok(selection.selected)
 }
 
+/// Whether the backend is `auto`'s to choose (neither `--backend` nor `STRAHL_BACKEND` forces one).
+pub fn is_auto(flag: Option<BackendChoice>) -> anyhow::Result<bool> {
+    Ok(backend_choice(flag)?.0 == BackendChoice::Auto)
+}
+
+/// The result of `gpu`, the job on the GPU; where `auto` chose the GPU and the device fails
+/// ([`strahl::backend::gpu::GpuError`]), the result of `cpu` after a line on standard error
+/// that says so. Where the user forced the GPU, its error.
+pub fn gpu_or_cpu<T>(
+    auto: bool,
+    gpu: impl FnOnce() -> anyhow::Result<T>,
+    cpu: impl FnOnce() -> T,
+) -> anyhow::Result<T> {
+    match gpu() {
+        Err(e) if auto && e.downcast_ref::<strahl::backend::gpu::GpuError>().is_some() => {
+            eprintln!("backend: cpu (the gpu failed: {}; running on the cpu instead)", strahl::errors::chain(&e));
+            Ok(cpu())
+        }
+        done => done,
+    }
+}
+
 /// What loading a scene read but did not use (skipped glTF primitives, unsupported
 /// extensions...), one `warning:` line each on stderr.
 pub fn print_scene_warnings(scene: &strahl::scene::Scene) {
@@ -168,4 +197,22 @@ pub fn print_scene_summary(prep: &strahl::render::Prepared) {
         prep.bvh.depth,
         prep.build_time.as_secs_f64()
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::gpu_or_cpu;
+    use strahl::backend::gpu::GpuError;
+
+    #[test]
+    fn auto_falls_back_to_the_cpu_when_the_gpu_fails_and_a_forced_gpu_does_not() {
+        let lost = || -> anyhow::Result<&str> { Err(GpuError::Lost("test".into()).into()) };
+        assert_eq!(gpu_or_cpu(true, lost, || "cpu").unwrap(), "cpu");
+        let e = gpu_or_cpu(false, lost, || "cpu").unwrap_err();
+        assert!(e.to_string().contains("device was lost"), "{e}");
+        // Only device errors fall back: a bad scene is the user's to fix on either backend.
+        let bad = || -> anyhow::Result<&str> { Err(anyhow::anyhow!("scene.toml: bad")) };
+        assert!(gpu_or_cpu(true, bad, || "cpu").is_err());
+        assert_eq!(gpu_or_cpu(true, || Ok("gpu"), || "cpu").unwrap(), "gpu");
+    }
 }

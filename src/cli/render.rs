@@ -150,50 +150,56 @@ pub fn run(a: RenderArgs) -> Result<()> {
         format!("the region {region} ({}x{} of {width}x{height})", region.width(), region.height())
     };
     let progress = Progress::new(samples as u64, "render");
+    let render_on_cpu = || {
+        let start = Instant::now();
+        let per_row = region.width() as u64 * frame.spp as u64;
+        let img =
+            strahl::backend::cpu::render_region(&prep, &frame, mode, region, &|rows| progress.set(rows * per_row));
+        progress.finish();
+        let secs = start.elapsed().as_secs_f64();
+        let threads = rayon::current_num_threads();
+        println!(
+            "rendered {what} at {} spp ({}) on the cpu ({threads} threads) in {secs:.3} s: {:.2} M samples/s",
+            frame.spp,
+            mode.name(),
+            samples / secs / 1e6
+        );
+        (img, "cpu", format!("cpu ({threads} threads)"))
+    };
+    let auto = super::is_auto(a.backend)?;
     let (image, backend, device) = match super::open_backend(a.backend, workload)? {
-        Selected::Cpu => {
-            let start = Instant::now();
-            let per_row = region.width() as u64 * frame.spp as u64;
-            let img =
-                strahl::backend::cpu::render_region(&prep, &frame, mode, region, &|rows| progress.set(rows * per_row));
-            progress.finish();
-            let secs = start.elapsed().as_secs_f64();
-            let threads = rayon::current_num_threads();
-            println!(
-                "rendered {what} at {} spp ({}) on the cpu ({threads} threads) in {secs:.3} s: {:.2} M samples/s",
-                frame.spp,
-                mode.name(),
-                samples / secs / 1e6
-            );
-            (img, "cpu", format!("cpu ({threads} threads)"))
-        }
-        Selected::Gpu(ctx) => {
-            let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
-            let (img, stats) =
-                gpu::render::render_region(&ctx, &buffers, &frame, mode, buffers.key, region, &|done, total| {
-                    // A step is one sample pass over one band.
-                    progress.set(done * samples as u64 / total.max(1))
-                })?;
-            progress.finish();
-            let secs = stats.wall.as_secs_f64();
-            println!(
-                "rendered {what} at {} spp ({}) on {} in {secs:.3} s ({} dispatches): {:.2} M samples/s",
-                frame.spp,
-                mode.name(),
-                ctx.adapter_name(),
-                stats.dispatches,
-                samples / secs / 1e6
-            );
-            println!("{}", compile_report(&stats));
-            if let Some(g) = stats.gpu_time {
+        Selected::Cpu => render_on_cpu(),
+        Selected::Gpu(ctx) => super::gpu_or_cpu(
+            auto,
+            || {
+                let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
+                let (img, stats) =
+                    gpu::render::render_region(&ctx, &buffers, &frame, mode, buffers.key, region, &|done, total| {
+                        // A step is one sample pass over one band.
+                        progress.set(done * samples as u64 / total.max(1))
+                    })?;
+                progress.finish();
+                let secs = stats.wall.as_secs_f64();
                 println!(
-                    "gpu time from timestamp queries: {:.3} ms, {:.2} M samples/s",
-                    g.as_secs_f64() * 1e3,
-                    samples / g.as_secs_f64() / 1e6
+                    "rendered {what} at {} spp ({}) on {} in {secs:.3} s ({} dispatches): {:.2} M samples/s",
+                    frame.spp,
+                    mode.name(),
+                    ctx.adapter_name(),
+                    stats.dispatches,
+                    samples / secs / 1e6
                 );
-            }
-            (img, "gpu", ctx.adapter_name())
-        }
+                println!("{}", compile_report(&stats));
+                if let Some(g) = stats.gpu_time {
+                    println!(
+                        "gpu time from timestamp queries: {:.3} ms, {:.2} M samples/s",
+                        g.as_secs_f64() * 1e3,
+                        samples / g.as_secs_f64() / 1e6
+                    );
+                }
+                Ok((img, "gpu", ctx.adapter_name()))
+            },
+            render_on_cpu,
+        )?,
     };
     let is_exr = a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     if is_exr {

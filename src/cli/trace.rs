@@ -54,10 +54,17 @@ pub fn run(a: TraceArgs) -> Result<()> {
     let start = Instant::now();
     let csv = match a.precision {
         Precision::F64 => cpu_csv::<f64>(&scene, &rays, a.all),
-        Precision::F32 => match super::open_backend(a.backend, Workload::Trace)? {
-            Selected::Cpu => cpu_csv::<f32>(&scene, &rays, a.all),
-            Selected::Gpu(ctx) => gpu_csv(*ctx, &scene, &rays, a.all)?,
-        },
+        Precision::F32 => {
+            let auto = super::is_auto(a.backend)?;
+            match super::open_backend(a.backend, Workload::Trace)? {
+                Selected::Cpu => cpu_csv::<f32>(&scene, &rays, a.all),
+                Selected::Gpu(ctx) => super::gpu_or_cpu(
+                    auto,
+                    || gpu_csv(*ctx, &scene, &rays, a.all),
+                    || cpu_csv::<f32>(&scene, &rays, a.all),
+                )?,
+            }
+        }
     };
     let secs = start.elapsed().as_secs_f64();
     match &a.output {

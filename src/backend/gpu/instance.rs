@@ -1,4 +1,4 @@
-//! The Vulkan instance strahl computes on: headless, without window-system surface extensions.
+//! The Vulkan instance strahl computes on.
 //!
 //! wgpu enables every surface extension the loader offers (`VK_KHR_xlib_surface`,
 //! `VK_KHR_xcb_surface`, `VK_KHR_wayland_surface`). Mesa's device-selection layer
@@ -9,43 +9,36 @@
 //! prints `error: XDG_RUNTIME_DIR is invalid or not set in the environment.` on standard error,
 //! once per enumeration (wgpu enumerates twice): the layer of Mesa 22.3 always does, Mesa 25's
 //! where `WAYLAND_DISPLAY` is set; an XCB connection to an unreachable `DISPLAY` can stall.
-//! strahl never presents (the viewer opens its own instance through eframe), so these
-//! extensions are left out and the layer connects to nothing.
+//!
+//! wgpu-hal offers no supported way to leave those extensions out (its instance callback may
+//! only add to them). What is supported is the layer's own switch, which the Vulkan loader
+//! reads when the instance is created: an implicit layer is disabled by the environment
+//! variable named in its manifest, `NODEVICE_SELECT=1` for this one. The layer only orders
+//! the devices, and strahl chooses its adapter itself, so the `strahl` binary sets
+//! [`DISABLE_DEVICE_SELECT`] at the start of `main`, before any thread exists, unless the
+//! user configures the layer (`MESA_VK_DEVICE_SELECT`) or the variable already; the viewer,
+//! which presents, keeps the layer. Other programs using this library without a display can
+//! set it the same way.
 
 use super::GpuError;
-use std::ffi::CStr;
 
-/// The instance extensions of window systems that compute needs none of.
-const WINDOW_SYSTEM_SURFACES: [&CStr; 3] = [c"VK_KHR_xlib_surface", c"VK_KHR_xcb_surface", c"VK_KHR_wayland_surface"];
+/// The environment variable that disables Mesa's device-selection layer, with its value.
+pub const DISABLE_DEVICE_SELECT: (&str, &str) = ("NODEVICE_SELECT", "1");
 
-/// A Vulkan-only wgpu instance without window-system surface extensions. Its flags come from
-/// the environment as wgpu's own (`WGPU_DEBUG`, `WGPU_VALIDATION`, ...).
+/// Whether a headless program should set [`DISABLE_DEVICE_SELECT`] in an environment where
+/// `get` reads the variables: not where the user set it, or chose a device through the layer.
+pub fn should_disable_device_select(get: impl Fn(&str) -> Option<std::ffi::OsString>) -> bool {
+    get(DISABLE_DEVICE_SELECT.0).is_none() && get("MESA_VK_DEVICE_SELECT").is_none()
+}
+
+/// A Vulkan-only wgpu instance. Its flags come from the environment as wgpu's own
+/// (`WGPU_DEBUG`, `WGPU_VALIDATION`, ...).
 pub fn headless_instance() -> Result<wgpu::Instance, GpuError> {
-    use wgpu::hal::vulkan;
-    let env = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
-    let desc = wgpu::hal::InstanceDescriptor {
-        name: "strahl",
-        flags: env.flags,
-        memory_budget_thresholds: env.memory_budget_thresholds,
-        backend_options: env.backend_options,
-        telemetry: None,
-        display: None,
+    let desc = wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::VULKAN,
+        ..wgpu::InstanceDescriptor::new_without_display_handle_from_env()
     };
-    let drop_surfaces: Box<vulkan::CreateInstanceCallback> = Box::new(|args: vulkan::CreateInstanceCallbackArgs| {
-        args.extensions.retain(|e| !WINDOW_SYSTEM_SURFACES.contains(e));
-    });
-    // SAFETY: wgpu-hal documents that the callback should only add extensions, because it
-    // trusts the list it is left with. Removing these three is sound: that list becomes the
-    // instance's enabled extensions (`InstanceShared::extensions`), and wgpu-hal 30 consults
-    // it before it touches any of them (`create_surface_from_xlib`, `_xcb`, `_wayland` fail
-    // with "Vulkan driver does not support ..." when it lacks theirs); nothing else uses them.
-    // strahl never creates a surface on this instance. Everything else is as `wgpu::Instance::new`
-    // makes it (the same descriptor, the same `init`).
-    let hal = unsafe { vulkan::Instance::init_with_callback(&desc, Some(drop_surfaces)) }
-        // No loader or no driver: the same answer as an instance without adapters.
-        .map_err(|_| GpuError::NoAdapter)?;
-    // SAFETY: `hal` is a valid Vulkan instance just created, owned by the wgpu instance from here.
-    Ok(unsafe { wgpu::Instance::from_hal::<wgpu::hal::api::Vulkan>(hal) })
+    Ok(wgpu::Instance::new(desc))
 }
 
 /// The Vulkan adapter strahl uses: a discrete GPU preferred, a software device (lavapipe) last.
