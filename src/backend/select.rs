@@ -84,12 +84,47 @@ pub enum Backend {
 /// (The machine was shared while measuring: times are several times the unloaded ones, ratios
 /// within minutes compare.) The CPU backend is as fast (within the spread of the runs) or
 /// faster in every row and compiles
-/// nothing, so it is chosen for all three. Revise a row when the shaders get faster.
+/// nothing, so it is chosen for all three. Revise a row when the shaders get faster (and the
+/// expectation of `tests/backend_choice.rs`, which states it apart).
 pub fn on_software_device(w: Workload) -> Backend {
     match w {
         Workload::Whitted => Backend::Cpu,
         Workload::Path => Backend::Cpu,
         Workload::Trace => Backend::Cpu,
+    }
+}
+
+/// What `auto` takes for `workload`, and why: `adapter` is the adapter found (None: none),
+/// `software_table` the faster backend per workload where it is a software device
+/// ([`on_software_device`] in strahl; any table in tests).
+pub fn decide(
+    adapter: Option<&wgpu::AdapterInfo>,
+    workload: Workload,
+    software_table: impl Fn(Workload) -> Backend,
+) -> (Backend, String) {
+    let Some(info) = adapter else {
+        return (Backend::Cpu, "no Vulkan adapter found".into());
+    };
+    if !instance::is_software(info) {
+        return (Backend::Gpu, format!("{}, a {:?}", info.name, info.device_type));
+    }
+    match software_table(workload) {
+        Backend::Cpu => (
+            Backend::Cpu,
+            format!(
+                "the only Vulkan device is a software one, {}, slower here for {}; --backend gpu uses it",
+                info.name,
+                workload.describe()
+            ),
+        ),
+        Backend::Gpu => (
+            Backend::Gpu,
+            format!(
+                "{}, a software Vulkan device, faster here than the cpu backend for {}",
+                info.name,
+                workload.describe()
+            ),
+        ),
     }
 }
 
@@ -114,29 +149,11 @@ pub fn select(choice: Choice, workload: Workload) -> Result<Selection, GpuError>
         Choice::Cpu => Ok(Selection { selected: Selected::Cpu, note: None }),
         Choice::Gpu => Ok(Selection { selected: Selected::Gpu(Box::new(GpuContext::new()?)), note: None }),
         Choice::Auto => {
-            let adapter = match instance::request_adapter() {
-                Ok(a) => a,
-                Err(_) => return Ok(cpu("no Vulkan adapter found".into())),
-            };
-            let info = adapter.get_info();
-            let why = if !instance::is_software(&info) {
-                format!("{}, a {:?}", info.name, info.device_type)
-            } else {
-                match on_software_device(workload) {
-                    Backend::Cpu => {
-                        return Ok(cpu(format!(
-                            "the only Vulkan device is a software one, {}, slower here for {}; \
-                             --backend gpu uses it",
-                            info.name,
-                            workload.describe()
-                        )));
-                    }
-                    Backend::Gpu => format!(
-                        "{}, a software Vulkan device, faster here than the cpu backend for {}",
-                        info.name,
-                        workload.describe()
-                    ),
-                }
+            let adapter = instance::request_adapter().ok();
+            let info = adapter.as_ref().map(|a| a.get_info());
+            let (backend, why) = decide(info.as_ref(), workload, on_software_device);
+            let (Backend::Gpu, Some(adapter), Some(info)) = (backend, adapter, info) else {
+                return Ok(cpu(why));
             };
             Ok(match GpuContext::from_adapter(&adapter) {
                 Ok(ctx) => {
@@ -159,5 +176,35 @@ mod tests {
         assert_eq!(Choice::parse("Cpu"), Some(Choice::Cpu));
         assert_eq!(Choice::parse("both"), None);
         assert_eq!(Choice::parse(""), None);
+    }
+
+    fn adapter(name: &str, device_type: wgpu::DeviceType) -> wgpu::AdapterInfo {
+        wgpu::AdapterInfo { name: name.into(), ..wgpu::AdapterInfo::new(device_type, wgpu::Backend::Vulkan) }
+    }
+
+    #[test]
+    fn auto_decides_by_the_adapter_and_the_software_table() {
+        use Workload::*;
+        let gpu_everywhere = |_| Backend::Gpu;
+        let cpu_everywhere = |_| Backend::Cpu;
+        // No adapter: the cpu, whatever the table says.
+        assert_eq!(decide(None, Path, gpu_everywhere), (Backend::Cpu, "no Vulkan adapter found".into()));
+        // A hardware GPU always wins.
+        let hw = adapter("RTX", wgpu::DeviceType::DiscreteGpu);
+        for w in [Whitted, Path, Trace] {
+            assert_eq!(decide(Some(&hw), w, cpu_everywhere), (Backend::Gpu, "RTX, a DiscreteGpu".into()));
+        }
+        // A software device: the table's row for the workload, either way.
+        let sw = adapter("llvmpipe", wgpu::DeviceType::Cpu);
+        let only_trace_on_gpu = |w| if w == Trace { Backend::Gpu } else { Backend::Cpu };
+        let (b, why) = decide(Some(&sw), Trace, only_trace_on_gpu);
+        assert_eq!(b, Backend::Gpu);
+        assert_eq!(why, "llvmpipe, a software Vulkan device, faster here than the cpu backend for ray queries");
+        let (b, why) = decide(Some(&sw), Whitted, only_trace_on_gpu);
+        assert_eq!(b, Backend::Cpu);
+        assert!(
+            why.starts_with("the only Vulkan device is a software one, llvmpipe, slower here for whitted"),
+            "{why}"
+        );
     }
 }
