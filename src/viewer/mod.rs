@@ -16,6 +16,7 @@ mod jobs;
 mod pacing;
 mod panel;
 mod reload;
+pub mod runtime_libs;
 mod screenshot;
 
 use crate::backend::gpu::{CachedPipeline, FeatureKey, GpuContext, Program, SceneBuffers};
@@ -54,6 +55,7 @@ pub struct ViewOptions {
 
 /// Opens the window and runs until it is closed (or, with `frames`, until done).
 pub fn run(opts: ViewOptions) -> Result<()> {
+    runtime_libs::check().map_err(|e| anyhow!(e))?;
     let prep = reload::load(&opts.scene).map_err(|e| anyhow!(e))?;
     eprintln!(
         "scene: {} objects, {} triangles, BVH {} nodes built in {:.3} s",
@@ -448,6 +450,10 @@ impl eframe::App for Viewer {
         let ctx = ui.ctx().clone();
         self.pacer.frame_started(Instant::now(), self.gpu.timings.back());
         self.gpu.poll_timings();
+        // The frames' work is submitted unscoped; what the device reported of it shows here.
+        if let Err(e) = self.gpu.ctx.check() {
+            self.gpu_error = Some(e.to_string());
+        }
         self.poll_reload();
         self.poll_compile();
         self.poll_comparison(&ctx);
