@@ -4,7 +4,10 @@
 //! 2: bad argument), and the fallback to the CPU where there is no Vulkan driver.
 //!
 //! A full disk is a small tmpfs, mounted where the tests run as root (CI does); elsewhere
-//! those tests print a note and return. The writer-error test of `strahl::output` always runs.
+//! those tests record a skip (`common::skip`) and return. The writer-error test of
+//! `strahl::output` always runs.
+
+mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -65,7 +68,7 @@ impl Tmpfs {
             .output()
             .is_ok_and(|o| o.status.success());
         if !ok {
-            eprintln!("note: cannot mount a tmpfs here (not root?): skipping the full-disk/read-only part");
+            common::skip("cannot mount a tmpfs here (not root?): the full-disk and read-only checks did not run");
             return None;
         }
         Some(Tmpfs { dir })

@@ -16,10 +16,6 @@ fn on_path(program: &str) -> bool {
     std::env::var_os("PATH").is_some_and(|paths| std::env::split_paths(&paths).any(|dir| dir.join(program).is_file()))
 }
 
-fn skip_gpu_tests() -> bool {
-    std::env::var("STRAHL_SKIP_GPU_TESTS").is_ok_and(|v| v == "1")
-}
-
 /// The numbers after `key` on its line of the viewer's standard output.
 fn numbers(stdout: &str, key: &str) -> Vec<u32> {
     let line = stdout
@@ -78,8 +74,8 @@ fn the_path_mode_window_shows_the_path_traced_samples_of_the_library() {
 /// render of the same samples; checks the side panel too.
 fn window_matches_the_library(mode: strahl::scene::RenderMode) {
     if !on_path("xvfb-run") {
-        if skip_gpu_tests() {
-            eprintln!("skipping the viewer test: xvfb-run not found");
+        if common::gpu_tests_may_skip() {
+            common::skip("xvfb-run not found");
             return;
         }
         panic!("xvfb-run not found: install xvfb and xauth (.ci/run does), or set STRAHL_SKIP_GPU_TESTS=1 to skip");

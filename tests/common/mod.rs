@@ -4,13 +4,37 @@
 use std::path::PathBuf;
 use strahl::backend::gpu::GpuContext;
 
+/// Records that the running test skipped (all or part of) its checks, and why: a line
+/// `SKIPPED <test>: <why>` on standard error (shown with the test's output), and the same line
+/// appended to the file `STRAHL_SKIP_LOG` names, where set. `.ci/run` sets it, counts the
+/// lines and fails when any test it expects to run skipped.
+pub fn skip(why: &str) {
+    let test = std::thread::current().name().unwrap_or("a test").to_string();
+    let line = format!("SKIPPED {test}: {why}");
+    eprintln!("{line}");
+    if let Some(log) = std::env::var_os("STRAHL_SKIP_LOG") {
+        use std::io::Write;
+        let appended =
+            std::fs::OpenOptions::new().create(true).append(true).open(&log).and_then(|mut f| writeln!(f, "{line}"));
+        if let Err(e) = appended {
+            panic!("cannot record the skip in {}: {e}", std::path::Path::new(&log).display());
+        }
+    }
+}
+
+/// Whether GPU tests may skip where their device or tools are missing (STRAHL_SKIP_GPU_TESTS=1).
+pub fn gpu_tests_may_skip() -> bool {
+    std::env::var("STRAHL_SKIP_GPU_TESTS").is_ok_and(|v| v == "1")
+}
+
 /// The GPU context for GPU tests: lavapipe in CI. Without any Vulkan adapter the test fails
-/// with the install hint, unless STRAHL_SKIP_GPU_TESTS=1 asks to skip (returns None).
+/// with the install hint, unless STRAHL_SKIP_GPU_TESTS=1 asks to skip (returns None, the skip
+/// recorded by [`skip`]).
 pub fn gpu() -> Option<GpuContext> {
     match GpuContext::new() {
         Ok(ctx) => Some(ctx),
-        Err(e) if std::env::var("STRAHL_SKIP_GPU_TESTS").is_ok_and(|v| v == "1") => {
-            eprintln!("skipping a GPU test: {e}");
+        Err(e) if gpu_tests_may_skip() => {
+            skip(&format!("no GPU: {e}"));
             None
         }
         Err(e) => panic!("{e} (set STRAHL_SKIP_GPU_TESTS=1 to skip GPU tests)"),
