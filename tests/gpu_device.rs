@@ -60,9 +60,8 @@ fn a_device_error_is_returned_and_the_context_stays_usable() {
     ctx.check().expect("the error was reported once, where it happened");
 }
 
-/// A copy of `shaders/` whose Whitted program binds a buffer its pipeline layout lacks: naga
-/// accepts the module, the device refuses the pipeline.
-fn shaders_with_an_unbound_buffer(dir: &Path) -> PathBuf {
+/// A copy of `shaders/` in `dir`.
+fn copy_shaders(dir: &Path) -> PathBuf {
     let copy = dir.join("shaders");
     std::fs::create_dir_all(copy.join("modules")).unwrap();
     for sub in ["", "modules"] {
@@ -73,6 +72,13 @@ fn shaders_with_an_unbound_buffer(dir: &Path) -> PathBuf {
             }
         }
     }
+    copy
+}
+
+/// A copy of `shaders/` whose Whitted program binds a buffer its pipeline layout lacks: naga
+/// accepts the module, the device refuses the pipeline.
+fn shaders_with_an_unbound_buffer(dir: &Path) -> PathBuf {
+    let copy = copy_shaders(dir);
     let render = copy.join("render.wgsl");
     let text = std::fs::read_to_string(&render).unwrap();
     let text = text
@@ -113,4 +119,31 @@ fn a_pipeline_the_device_refuses_is_an_error_message() {
     let line = err.lines().find(|l| l.starts_with("error: ")).unwrap_or_else(|| panic!("no error line: {err}"));
     assert!(line.contains("pipeline") && line.contains("Render"), "{line}");
     assert!(!out.exists(), "an image was written");
+}
+
+/// A shader that does not compose is reported where it is wrong: the file, line and column,
+/// and the source line, as naga_oil prints them (not its error's debug form).
+#[test]
+fn a_composition_error_names_its_file_and_line() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let shaders = copy_shaders(dir.path());
+    let module = shaders.join("modules/sphere.wgsl");
+    let text = std::fs::read_to_string(&module).unwrap();
+    std::fs::write(&module, text + "\nfn broken( -> f32 { return 1.0; }\n").unwrap();
+    let out = dir.path().join("a.png");
+    let run = Command::new(env!("CARGO_BIN_EXE_strahl"))
+        .current_dir(root())
+        .args(["render", "assets/scenes/sphere.toml", "--backend", "gpu", "--width", "16", "--height", "12", "-o"])
+        .arg(&out)
+        .env("STRAHL_SHADER_DIR", &shaders)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{err}");
+    assert!(err.contains("modules/sphere.wgsl") && err.contains("fn broken( -> f32"), "{err}");
+    assert!(!err.contains("ComposerError") && !err.contains("panicked"), "{err}");
+    assert!(!out.exists());
 }
