@@ -142,15 +142,21 @@ impl FlatScene {
 /// intensity of a Lambertian emitter. Shadow rays pass through emissive surfaces, so the
 /// object does not hide its own stand-in. Planes have no finite area and get none.
 pub fn stand_in_lights(scene: &Scene) -> Vec<GpuLight> {
-    // The radiance an emissive material gives off on average (its texture's mean included).
-    let emitted = |material: u32| -> Option<[f64; 3]> {
-        let m = &scene.materials[material as usize];
-        if m.kind != MaterialKind::Emissive || m.radiance.iter().all(|&c| c <= 0.0) {
-            return None;
-        }
-        let scale = m.radiance_texture.map_or([1.0; 3], |t| scene.textures[t as usize].mean());
-        Some([0, 1, 2].map(|c| m.radiance[c] * scale[c]))
-    };
+    // The radiance each emissive material gives off on average (its texture's mean included),
+    // computed once per material: a texture's mean reads every texel, and a mesh asks per
+    // triangle.
+    let per_material: Vec<Option<[f64; 3]>> = scene
+        .materials
+        .iter()
+        .map(|m| {
+            if m.kind != MaterialKind::Emissive || m.radiance.iter().all(|&c| c <= 0.0) {
+                return None;
+            }
+            let scale = m.radiance_texture.map_or([1.0; 3], |t| scene.textures[t as usize].mean());
+            Some([0, 1, 2].map(|c| m.radiance[c] * scale[c]))
+        })
+        .collect();
+    let emitted = |material: u32| per_material[material as usize];
     let mut out = Vec::new();
     let mut push = |centre: V3<f64>, area: f64, radiance: [f64; 3]| {
         if area > 0.0 {
