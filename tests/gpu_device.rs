@@ -96,6 +96,23 @@ fn shaders_with_an_unbound_buffer(dir: &Path) -> PathBuf {
     copy
 }
 
+/// Standard error of a small GPU render with the shaders of `shaders`, which must fail (exit
+/// status 1) without writing its image (into `dir`).
+fn failing_render(dir: &Path, shaders: &Path) -> String {
+    let out = dir.join("a.png");
+    let run = Command::new(env!("CARGO_BIN_EXE_strahl"))
+        .current_dir(root())
+        .args(["render", "assets/scenes/sphere.toml", "--backend", "gpu", "--width", "16", "--height", "12", "-o"])
+        .arg(&out)
+        .env("STRAHL_SHADER_DIR", shaders)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert_eq!(run.status.code(), Some(1), "{err}");
+    assert!(!out.exists(), "an image was written");
+    err
+}
+
 /// The command line reports a pipeline the device refuses as an error naming the shader
 /// (exit status 1) and writes nothing; before error scopes, wgpu's default handler panicked.
 #[test]
@@ -105,20 +122,10 @@ fn a_pipeline_the_device_refuses_is_an_error_message() {
     }
     let dir = tempfile::tempdir().unwrap();
     let shaders = shaders_with_an_unbound_buffer(dir.path());
-    let out = dir.path().join("a.png");
-    let run = Command::new(env!("CARGO_BIN_EXE_strahl"))
-        .current_dir(root())
-        .args(["render", "assets/scenes/sphere.toml", "--backend", "gpu", "--width", "16", "--height", "12", "-o"])
-        .arg(&out)
-        .env("STRAHL_SHADER_DIR", &shaders)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(1), "{err}");
+    let err = failing_render(dir.path(), &shaders);
     assert!(!err.contains("panicked"), "{err}");
     let line = err.lines().find(|l| l.starts_with("error: ")).unwrap_or_else(|| panic!("no error line: {err}"));
     assert!(line.contains("pipeline") && line.contains("Render"), "{line}");
-    assert!(!out.exists(), "an image was written");
 }
 
 /// A shader that does not compose is reported where it is wrong: the file, line and column,
@@ -133,17 +140,7 @@ fn a_composition_error_names_its_file_and_line() {
     let module = shaders.join("modules/sphere.wgsl");
     let text = std::fs::read_to_string(&module).unwrap();
     std::fs::write(&module, text + "\nfn broken( -> f32 { return 1.0; }\n").unwrap();
-    let out = dir.path().join("a.png");
-    let run = Command::new(env!("CARGO_BIN_EXE_strahl"))
-        .current_dir(root())
-        .args(["render", "assets/scenes/sphere.toml", "--backend", "gpu", "--width", "16", "--height", "12", "-o"])
-        .arg(&out)
-        .env("STRAHL_SHADER_DIR", &shaders)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(1), "{err}");
+    let err = failing_render(dir.path(), &shaders);
     assert!(err.contains("modules/sphere.wgsl") && err.contains("fn broken( -> f32"), "{err}");
     assert!(!err.contains("ComposerError") && !err.contains("panicked"), "{err}");
-    assert!(!out.exists());
 }

@@ -2,7 +2,7 @@
 //! change nothing) under stand-ins for dpkg-query and apt-get: a fresh machine, whose dpkg has
 //! never heard of Mesa's package, and machines with an old and a current Mesa.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Command, Output};
 
 fn root() -> PathBuf {
@@ -24,12 +24,21 @@ fn stand_ins(dpkg_query: &str) -> tempfile::TempDir {
     dir
 }
 
-fn run(script: &str, bin: &Path) -> Output {
+/// Standard error of `script --dry-run` under the stand-ins ([`stand_ins`]), which must succeed
+/// and run no apt-get.
+fn dry_run(script: &str, dpkg_query: &str) -> String {
+    let bin = stand_ins(dpkg_query);
     let path = std::env::join_paths(
-        std::iter::once(bin.to_path_buf()).chain(std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())),
+        std::iter::once(bin.path().to_path_buf())
+            .chain(std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())),
     )
     .unwrap();
-    Command::new("bash").arg(root().join(script)).arg("--dry-run").env("PATH", path).output().unwrap()
+    let out: Output =
+        Command::new("bash").arg(root().join(script)).arg("--dry-run").env("PATH", path).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{script}: exit {:?}: {err}", out.status.code());
+    assert!(!err.contains("apt-get ran"), "{err}");
+    err
 }
 
 /// dpkg-query as on a fresh machine: mesa-vulkan-drivers is unknown, exit status 1 (a script
@@ -38,41 +47,27 @@ const UNKNOWN: &str = "echo \"dpkg-query: no packages found matching $3\" >&2; e
 
 #[test]
 fn on_a_fresh_machine_lavapipe_would_be_installed() {
-    let bin = stand_ins(UNKNOWN);
-    let out = run("tools/install-lavapipe", bin.path());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "exit {:?}: {err}", out.status.code());
+    let err = dry_run("tools/install-lavapipe", UNKNOWN);
     assert!(
         err.contains("would run: ") && err.contains("apt-get install") && err.contains("mesa-vulkan-drivers"),
         "{err}"
     );
-    assert!(!err.contains("apt-get ran"), "{err}");
 }
 
 #[test]
 fn an_old_mesa_is_replaced_and_a_current_one_kept() {
-    let old = stand_ins("printf 'install ok installed 22.3.6-1+deb12u1'");
-    let out = run("tools/install-lavapipe", old.path());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success() && err.contains("apt-get install"), "{err}");
-
-    let current = stand_ins("printf 'install ok installed 25.0.7-2~bpo12+1'");
-    let out = run("tools/install-lavapipe", current.path());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
+    let err = dry_run("tools/install-lavapipe", "printf 'install ok installed 22.3.6-1+deb12u1'");
+    assert!(err.contains("apt-get install"), "{err}");
+    let err = dry_run("tools/install-lavapipe", "printf 'install ok installed 25.0.7-2~bpo12+1'");
     assert!(err.contains("mesa-vulkan-drivers 25.0.7-2~bpo12+1 is installed") && !err.contains("would run"), "{err}");
 }
 
 #[test]
 fn install_deps_names_every_missing_package_on_a_fresh_machine() {
-    let bin = stand_ins(UNKNOWN);
-    let out = run("tools/install-deps", bin.path());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "exit {:?}: {err}", out.status.code());
+    let err = dry_run("tools/install-deps", UNKNOWN);
     for package in ["libxcursor1", "libxi6", "libxkbcommon-x11-0", "mesa-vulkan-drivers"] {
         assert!(err.contains(package), "{package} not named: {err}");
     }
-    assert!(!err.contains("apt-get ran"), "{err}");
 }
 
 #[test]
