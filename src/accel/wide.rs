@@ -19,7 +19,8 @@ pub const LANES: usize = 4;
 /// Blocks one leaf child may hold (the count has 3 bits in a child word).
 pub const MAX_LEAF_BLOCKS: usize = 8;
 /// Deepest wide tree the collapse makes: the binary tree's [`super::bvh::MAX_DEPTH`], plus
-/// the levels that split an oversized binary leaf (at most log₈ of 2³⁰ primitives).
+/// the levels that would split an oversized binary leaf (at most log₈ of 2³⁰ primitives; the
+/// build's leaves hold at most 12, which one wide leaf holds, so its trees need none of them).
 pub const MAX_DEPTH: usize = super::bvh::MAX_DEPTH as usize + 12;
 
 /// A child word: an inner node's byte offset divided by 8 (an address the walk forms
@@ -474,8 +475,8 @@ impl<'a> Collapse<'a> {
     }
 
     /// The child word of a leaf over `prim_refs[first .. first + n]`, whose box is `bounds`.
-    /// A leaf too large for one word (only binary leaves cut off at the depth limit) becomes
-    /// a node of smaller leaves, each with the whole leaf's box.
+    /// A leaf too large for one word becomes a node of smaller leaves, each with the whole
+    /// leaf's box (the build's leaves never are: it keeps them at 12 primitives or fewer).
     fn leaf(&mut self, first: u32, n: u32, bounds: ([f32; 3], [f32; 3]), depth: usize) -> u32 {
         let max = (MAX_LEAF_BLOCKS * LANES) as u32;
         if n > max {
