@@ -190,12 +190,13 @@ pub fn print_scene_warnings(scene: &strahl::scene::Scene) {
 pub fn print_scene_summary(prep: &strahl::render::Prepared) {
     print_scene_warnings(&prep.scene);
     eprintln!(
-        "scene: {} objects, {} triangles, BVH {} nodes (depth {}) built in {:.3} s",
+        "scene: {} objects, {} triangles, BVH {} nodes (depth {}) built in {:.3} s, prepared in {:.3} s",
         prep.scene.objects.len(),
         prep.prims.triangles.len(),
         prep.bvh.nodes.len(),
         prep.bvh.depth,
-        prep.build_time.as_secs_f64()
+        prep.build_time.as_secs_f64(),
+        prep.prepare_time.as_secs_f64()
     );
 }
 

@@ -30,8 +30,11 @@ pub struct Prepared {
     pub bvh: Bvh,
     pub wide: WideBvh,
     pub gpu: FlatScene,
-    /// Time spent flattening and building the BVH.
+    /// Time spent building the BVH (the binary tree).
     pub build_time: Duration,
+    /// Time spent preparing the whole scene: its primitives, both trees and the GPU layout
+    /// (materials, lights, emitters, textures, environment) included.
+    pub prepare_time: Duration,
 }
 
 /// Memory [`Prepared`] allocates per bounded primitive, at most: the flattened primitive
@@ -105,10 +108,12 @@ impl Prepared {
     /// Builds the trees and GPU layout over `prims` (flattened from `scene`, perhaps with
     /// objects left out); `start` is when the preparation began.
     pub fn from_prims(scene: Scene, prims: Primitives<f32>, start: Instant) -> Self {
+        let built = Instant::now();
         let bvh = Bvh::build(&prims);
+        let build_time = built.elapsed();
         let wide = WideBvh::new(&bvh, &prims);
         let gpu = FlatScene::new(&scene, &prims, &bvh);
-        Self { scene, prims, bvh, wide, gpu, build_time: start.elapsed() }
+        Self { scene, prims, bvh, wide, gpu, build_time, prepare_time: start.elapsed() }
     }
 
     /// The frame parameters for rendering the whole image at `width`×`height`.

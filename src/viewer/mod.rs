@@ -58,11 +58,12 @@ pub fn run(opts: ViewOptions) -> Result<()> {
     runtime_libs::check().map_err(|e| anyhow!(e))?;
     let prep = reload::load(&opts.scene).map_err(|e| anyhow!(e))?;
     eprintln!(
-        "scene: {} objects, {} triangles, BVH {} nodes built in {:.3} s",
+        "scene: {} objects, {} triangles, BVH {} nodes built in {:.3} s, prepared in {:.3} s",
         prep.scene.objects.len(),
         prep.prims.triangles.len(),
         prep.bvh.nodes.len(),
-        prep.build_time.as_secs_f64()
+        prep.build_time.as_secs_f64(),
+        prep.prepare_time.as_secs_f64()
     );
     let mut setup = egui_wgpu::WgpuSetupCreateNew::without_display_handle();
     // Vulkan only, like the rest of strahl (lavapipe's GL adapter renders slightly differently).
