@@ -512,6 +512,39 @@ fn bad_gltf_files_name_the_file_and_the_path() {
     assert!(e.contains("objects[0].material: not a field of a gltf") && e.contains("its own materials"), "{e}");
 }
 
+/// What the specification allows and the gltf crate's strict reading refused: an accessor
+/// without `bufferView` (its values are zeros) and a texture without `source` (an extension
+/// gives the image: the material is untextured, with a warning).
+#[test]
+fn gltf_files_the_specification_allows_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = Quad { camera: true, light: true }.json(Some("quad.bin"), Some("checker.png"), 0);
+    std::fs::write(dir.path().join("checker.png"), checker_png()).unwrap();
+    std::fs::write(dir.path().join("quad.bin"), quad_buffer()).unwrap();
+    let load = |json: String| {
+        let path = dir.path().join("allowed.gltf");
+        std::fs::write(&path, json).unwrap();
+        Scene::load(&path).unwrap_or_else(|e| panic!("{e}"))
+    };
+    let zeros = load(good.replace(
+        r#"{"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"}"#,
+        r#"{"componentType": 5126, "count": 4, "type": "VEC2"}"#,
+    ));
+    let uvs: Vec<_> = zeros
+        .objects
+        .iter()
+        .flat_map(|o| match &o.geometry {
+            strahl::scene::Geometry::Mesh { uvs, .. } => uvs.clone(),
+            _ => Vec::new(),
+        })
+        .collect();
+    assert!(!uvs.is_empty() && uvs.iter().flatten().all(|uv| uv.iter().all(|&c| c == 0.0)), "{uvs:?}");
+    let sourceless =
+        load(good.replace(r#""textures": [{"source": 0, "sampler": 0}]"#, r#""textures": [{"sampler": 0}]"#));
+    assert!(sourceless.materials.iter().all(|m| m.color_texture.is_none()));
+    assert!(sourceless.warnings.iter().any(|w| w.contains("textures[0] has no source")), "{:?}", sourceless.warnings);
+}
+
 /// Every prefix of a valid `.glb` and every byte of it replaced by a few others: an error or a
 /// scene, never a panic.
 #[test]

@@ -201,7 +201,9 @@ fn import_checked(path: &Path, placement: &Transform, triangle_limit: usize) -> 
 
 /// The crate's validation (index ranges, required extensions...), after the one check it
 /// relies on without making (a primitive's POSITION accessor exists). POSITION's `min` and
-/// `max`, which the specification requires and strahl does not use, may be missing.
+/// `max`, which the specification requires and strahl does not use, may be missing; so may an
+/// accessor's `bufferView` without `sparse`, which the specification allows (its values are
+/// zeros, and `read_accessor` reads them so).
 fn validate(root: &gltf::json::Root) -> Res<()> {
     use gltf::json::validation::{Checked, Error, Validate};
     for (m, mesh) in root.meshes.iter().enumerate() {
@@ -216,8 +218,10 @@ fn validate(root: &gltf::json::Root) -> Res<()> {
     let mut errors = Vec::new();
     root.validate(root, gltf::json::Path::new, &mut |path, error| {
         let path = path();
-        let bound = path.as_str().ends_with(".min") || path.as_str().ends_with(".max");
-        if !(bound && error == Error::Missing) {
+        let p = path.as_str();
+        let allowed =
+            p.ends_with(".min") || p.ends_with(".max") || (p.starts_with("accessors[") && p.ends_with("].bufferView"));
+        if !(allowed && error == Error::Missing) {
             errors.push((path, error));
         }
     });
@@ -531,13 +535,13 @@ impl Reader<'_> {
             };
             let color_texture = match pbr.base_color_texture() {
                 Some(info) => {
-                    Some(self.texture(&info, &format!("{at}.pbrMetallicRoughness.baseColorTexture"), &mut textures)?)
+                    self.texture(&info, &format!("{at}.pbrMetallicRoughness.baseColorTexture"), &mut textures)?
                 }
                 None => None,
             };
             let radiance_texture = match m.emissive_texture() {
                 Some(info) if kind == MaterialKind::Emissive => {
-                    Some(self.texture(&info, &format!("{at}.emissiveTexture"), &mut textures)?)
+                    self.texture(&info, &format!("{at}.emissiveTexture"), &mut textures)?
                 }
                 _ => None,
             };
@@ -561,16 +565,26 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// The local index of the texture `info` refers to, decoded on first use.
-    fn texture(&mut self, info: &gltf::texture::Info, at: &str, cache: &mut HashMap<usize, u32>) -> Res<u32> {
+    /// The local index of the texture `info` refers to, decoded on first use; None (with a
+    /// warning) for a texture without `source`, which the specification allows where an
+    /// extension strahl does not read gives the image.
+    fn texture(&mut self, info: &gltf::texture::Info, at: &str, cache: &mut HashMap<usize, u32>) -> Res<Option<u32>> {
         if info.tex_coord() != 0 {
             self.warn(format!("{at}: texCoord {} is not read; TEXCOORD_0 is used", info.tex_coord()));
         }
         let tex = info.texture();
         if let Some(&k) = cache.get(&tex.index()) {
-            return Ok(k);
+            return Ok(Some(k));
         }
-        let image_index = tex.source().index();
+        let Some(image) = tex.source() else {
+            self.warn(format!(
+                "{at}: textures[{}] has no source (an extension gives its image, which strahl does not read): \
+                 the material is untextured",
+                tex.index()
+            ));
+            return Ok(None);
+        };
+        let image_index = image.index();
         let iat = format!("images[{image_index}]");
         let json = &self.doc.as_json().images[image_index];
         let bytes = match (&json.buffer_view, &json.uri) {
@@ -599,7 +613,7 @@ impl Reader<'_> {
         let k = self.out.textures.len() as u32;
         self.out.textures.push(t);
         cache.insert(tex.index(), k);
-        Ok(k)
+        Ok(Some(k))
     }
 
     /// Walks the default scene (else the first; else every root node) and places its meshes,
