@@ -512,9 +512,10 @@ fn bad_gltf_files_name_the_file_and_the_path() {
     assert!(e.contains("objects[0].material: not a field of a gltf") && e.contains("its own materials"), "{e}");
 }
 
-/// What the specification allows and the gltf crate's strict reading refused: an accessor
-/// without `bufferView` (its values are zeros) and a texture without `source` (an extension
-/// gives the image: the material is untextured, with a warning).
+/// What the specification allows and strahl's or the gltf crate's strict reading refused: an
+/// accessor without `bufferView` (its values are zeros), a texture without `source` (an
+/// extension gives the image: the material is untextured, with a warning) and an unused
+/// buffer without uri.
 #[test]
 fn gltf_files_the_specification_allows_load() {
     let dir = tempfile::tempdir().unwrap();
@@ -543,6 +544,18 @@ fn gltf_files_the_specification_allows_load() {
         load(good.replace(r#""textures": [{"source": 0, "sampler": 0}]"#, r#""textures": [{"sampler": 0}]"#));
     assert!(sourceless.materials.iter().all(|m| m.color_texture.is_none()));
     assert!(sourceless.warnings.iter().any(|w| w.contains("textures[0] has no source")), "{:?}", sourceless.warnings);
+    // A buffer without uri (and no GLB chunk to be) is valid while nothing reads it.
+    let unused = good.replace("}],\n  \"bufferViews\"", "}, {\"byteLength\": 16}],\n  \"bufferViews\"");
+    assert_ne!(unused, good, "the buffers array moved: update this test");
+    assert!(!load(unused.clone()).objects.is_empty());
+    let path = dir.path().join("read.gltf");
+    let read = unused.replace(
+        r#"{"buffer": 0, "byteOffset": 80, "byteLength": 12}"#,
+        r#"{"buffer": 1, "byteOffset": 0, "byteLength": 12}"#,
+    );
+    std::fs::write(&path, read).unwrap();
+    let e = Scene::load(&path).unwrap_err().to_string();
+    assert!(e.contains("bufferViews[2]: buffers[1]: has no uri"), "{e}");
 }
 
 /// Every prefix of a valid `.glb` and every byte of it replaced by a few others: an error or a

@@ -255,8 +255,9 @@ fn describe_error(e: gltf::Error) -> String {
 }
 
 /// The bytes of every buffer: the GLB binary chunk, a `data:` URI, or a file next to the
-/// glTF file.
-fn load_buffers(doc: &gltf::Document, blob: Option<&[u8]>, dir: &Path) -> Res<Vec<Vec<u8>>> {
+/// glTF file. A buffer without a uri and without a binary chunk to stand for it is valid while
+/// no view reads it: its entry is the error a view that does gets.
+fn load_buffers(doc: &gltf::Document, blob: Option<&[u8]>, dir: &Path) -> Res<Vec<Res<Vec<u8>>>> {
     let mut out = Vec::new();
     let mut blob_used = false;
     for b in doc.buffers() {
@@ -264,7 +265,8 @@ fn load_buffers(doc: &gltf::Document, blob: Option<&[u8]>, dir: &Path) -> Res<Ve
         let data = match b.source() {
             gltf::buffer::Source::Bin => {
                 let Some(blob) = blob.filter(|_| !blob_used) else {
-                    return Err(format!("{at}: has no uri, and the file has no (unused) GLB binary chunk"));
+                    out.push(Err(format!("{at}: has no uri, and the file has no (unused) GLB binary chunk")));
+                    continue;
                 };
                 blob_used = true;
                 blob.to_vec()
@@ -276,7 +278,7 @@ fn load_buffers(doc: &gltf::Document, blob: Option<&[u8]>, dir: &Path) -> Res<Ve
         if data.len() < b.length() {
             return Err(format!("{at}: byteLength is {} but its data holds {} bytes", b.length(), data.len()));
         }
-        out.push(data);
+        out.push(Ok(data));
     }
     Ok(out)
 }
@@ -332,7 +334,8 @@ struct PrimitiveData {
 
 struct Reader<'a> {
     doc: &'a gltf::Document,
-    buffers: Vec<Vec<u8>>,
+    /// Each buffer's bytes, or why it has none (an error only where a view reads it).
+    buffers: Vec<Res<Vec<u8>>>,
     dir: PathBuf,
     out: Import,
     /// Warnings already given (each once).
@@ -392,7 +395,8 @@ impl Reader<'_> {
 
     /// The bytes of buffer view `view`, checked to lie inside its buffer.
     fn view_bytes(&self, view: &gltf::buffer::View) -> Res<&[u8]> {
-        let buf = &self.buffers[view.buffer().index()];
+        let buf =
+            self.buffers[view.buffer().index()].as_ref().map_err(|m| format!("bufferViews[{}]: {m}", view.index()))?;
         let (start, len) = (view.offset(), view.length());
         match start.checked_add(len) {
             Some(end) if end <= buf.len() => Ok(&buf[start..end]),
