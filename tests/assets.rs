@@ -514,8 +514,8 @@ fn bad_gltf_files_name_the_file_and_the_path() {
 
 /// What the specification allows and strahl's or the gltf crate's strict reading refused: an
 /// accessor without `bufferView` (its values are zeros), a texture without `source` (an
-/// extension gives the image: the material is untextured, with a warning) and an unused
-/// buffer without uri.
+/// extension gives the image: the material is untextured, with a warning), an unused buffer
+/// without uri, and an animation channel without a node.
 #[test]
 fn gltf_files_the_specification_allows_load() {
     let dir = tempfile::tempdir().unwrap();
@@ -544,6 +544,11 @@ fn gltf_files_the_specification_allows_load() {
         load(good.replace(r#""textures": [{"source": 0, "sampler": 0}]"#, r#""textures": [{"sampler": 0}]"#));
     assert!(sourceless.materials.iter().all(|m| m.color_texture.is_none()));
     assert!(sourceless.warnings.iter().any(|w| w.contains("textures[0] has no source")), "{:?}", sourceless.warnings);
+    // An animation whose channel names no node (an extension would say what it animates),
+    // which strahl does not read.
+    let animation = r#""animations": [{"channels": [{"sampler": 0, "target": {"path": "translation"}}],
+        "samplers": [{"input": 0, "output": 0}]}], "asset""#;
+    assert!(!load(good.replace(r#""asset""#, animation)).objects.is_empty());
     // A buffer without uri (and no GLB chunk to be) is valid while nothing reads it.
     let unused = good.replace("}],\n  \"bufferViews\"", "}, {\"byteLength\": 16}],\n  \"bufferViews\"");
     assert_ne!(unused, good, "the buffers array moved: update this test");

@@ -183,7 +183,7 @@ fn import_checked(path: &Path, placement: &Transform, triangle_limit: usize) -> 
         crate::input::ReadError::Io(e) => format!("cannot open: {e}"),
         e => format!("cannot read: {e}"),
     })?;
-    let gltf = gltf::Gltf::from_slice_without_validation(&bytes).map_err(describe_error)?;
+    let gltf = parse(&bytes)?;
     drop(bytes);
     validate(gltf.document.as_json())?;
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
@@ -197,6 +197,33 @@ fn import_checked(path: &Path, placement: &Transform, triangle_limit: usize) -> 
         return Err("the scene has no triangles (no mesh with TRIANGLES, TRIANGLE_STRIP or TRIANGLE_FAN)".into());
     }
     Ok(reader.out)
+}
+
+/// The document and GLB binary chunk of `bytes`. Where the gltf crate's reading refuses the
+/// JSON, it is read again without `animations`, which strahl does not read and where the crate
+/// is stricter than the specification (a channel's `target.node` may be absent where an
+/// extension names the animated object).
+fn parse(bytes: &[u8]) -> Res<gltf::Gltf> {
+    let refused = match gltf::Gltf::from_slice_without_validation(bytes) {
+        Ok(g) => return Ok(g),
+        Err(e @ gltf::Error::Deserialize(_)) => describe_error(e),
+        Err(e) => return Err(describe_error(e)),
+    };
+    let (json, blob) = if bytes.starts_with(b"glTF") {
+        let glb = gltf::binary::Glb::from_slice(bytes).map_err(describe_error)?;
+        (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
+    } else {
+        (bytes.to_vec(), None)
+    };
+    let mut value: serde_json::Value = serde_json::from_slice(&json).map_err(|_| refused.clone())?;
+    match value.as_object_mut().and_then(|root| root.remove("animations")) {
+        Some(_) => {
+            let root: gltf::json::Root =
+                serde_json::from_value(value).map_err(|e| describe_error(gltf::Error::Deserialize(e)))?;
+            Ok(gltf::Gltf { document: gltf::Document::from_json_without_validation(root), blob })
+        }
+        None => Err(refused),
+    }
 }
 
 /// The crate's validation (index ranges, required extensions...), after the one check it
