@@ -444,13 +444,19 @@ material = "panel"
     }
 }
 
+/// The quad's JSON (camera and light) with its buffer and image as files beside it in `dir`,
+/// which the JSON names: cases of a `.gltf` file are this text, changed.
+fn write_quad_files(dir: &Path) -> String {
+    std::fs::write(dir.join("checker.png"), checker_png()).unwrap();
+    std::fs::write(dir.join("quad.bin"), quad_buffer()).unwrap();
+    Quad { camera: true, light: true }.json(Some("quad.bin"), Some("checker.png"), 0)
+}
+
 /// Bad files: an error naming the file and the glTF path, never a panic.
 #[test]
 fn bad_gltf_files_name_the_file_and_the_path() {
     let dir = tempfile::tempdir().unwrap();
-    let good = Quad { camera: true, light: true }.json(Some("quad.bin"), Some("checker.png"), 0);
-    std::fs::write(dir.path().join("checker.png"), checker_png()).unwrap();
-    std::fs::write(dir.path().join("quad.bin"), quad_buffer()).unwrap();
+    let good = write_quad_files(dir.path());
     let cases: Vec<(&str, String, &str)> = vec![
         ("ok", good.clone(), ""),
         ("missing buffer", good.replace("quad.bin", "gone.bin"), "buffers[0].uri: \""),
@@ -519,9 +525,7 @@ fn bad_gltf_files_name_the_file_and_the_path() {
 #[test]
 fn gltf_files_the_specification_allows_load() {
     let dir = tempfile::tempdir().unwrap();
-    let good = Quad { camera: true, light: true }.json(Some("quad.bin"), Some("checker.png"), 0);
-    std::fs::write(dir.path().join("checker.png"), checker_png()).unwrap();
-    std::fs::write(dir.path().join("quad.bin"), quad_buffer()).unwrap();
+    let good = write_quad_files(dir.path());
     let load = |json: String| {
         let path = dir.path().join("allowed.gltf");
         std::fs::write(&path, json).unwrap();

@@ -122,10 +122,10 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
         Ok(())
     };
     match which {
-        ConvergeBackend::Auto => open(super::open_backend(Some(BackendChoice::Auto), Workload::Path)?)?,
+        ConvergeBackend::Auto => open(super::open_backend(Some(BackendChoice::Auto), Workload::Path)?.0)?,
         ConvergeBackend::Cpu => open(Selected::Cpu)?,
         ConvergeBackend::Gpu => {
-            open(super::open_backend(Some(BackendChoice::Gpu), Workload::Path)?).context("opening the gpu backend")?
+            open(super::open_backend(Some(BackendChoice::Gpu), Workload::Path)?.0).context("opening the gpu backend")?
         }
         ConvergeBackend::Both => {
             match select::select(BackendChoice::Gpu, Workload::Path)

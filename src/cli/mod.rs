@@ -139,8 +139,8 @@ pub fn backend_choice(flag: Option<BackendChoice>) -> anyhow::Result<(BackendCho
 
 /// Opens the backend for `workload` that `--backend` (`flag`) or `STRAHL_BACKEND` asks for and
 /// says on stderr, in one line, which one `auto` took and why (or that the environment forced
-/// one).
-pub fn open_backend(flag: Option<BackendChoice>, workload: Workload) -> anyhow::Result<Selected> {
+/// one); with whether `auto` chose it (neither the flag nor the environment forced one).
+pub fn open_backend(flag: Option<BackendChoice>, workload: Workload) -> anyhow::Result<(Selected, bool)> {
     let (choice, from_env) = backend_choice(flag)?;
     let selection = strahl::backend::select::select(choice, workload)?;
     match (&selection.note, from_env) {
@@ -153,12 +153,7 @@ pub fn open_backend(flag: Option<BackendChoice>, workload: Workload) -> anyhow::
         ),
         (None, false) => {}
     }
-    Ok(selection.selected)
-}
-
-/// Whether the backend is `auto`'s to choose (neither `--backend` nor `STRAHL_BACKEND` forces one).
-pub fn is_auto(flag: Option<BackendChoice>) -> anyhow::Result<bool> {
-    Ok(backend_choice(flag)?.0 == BackendChoice::Auto)
+    Ok((selection.selected, choice == BackendChoice::Auto))
 }
 
 /// The result of `gpu`, the job on the GPU; where `auto` chose the GPU and the device fails

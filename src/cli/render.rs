@@ -166,8 +166,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
         );
         (img, "cpu", format!("cpu ({threads} threads)"))
     };
-    let auto = super::is_auto(a.backend)?;
-    let (image, backend, device) = match super::open_backend(a.backend, workload)? {
+    let (selected, auto) = super::open_backend(a.backend, workload)?;
+    let (image, backend, device) = match selected {
         Selected::Cpu => render_on_cpu(),
         Selected::Gpu(ctx) => super::gpu_or_cpu(
             auto,

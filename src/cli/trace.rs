@@ -55,8 +55,8 @@ pub fn run(a: TraceArgs) -> Result<()> {
     let csv = match a.precision {
         Precision::F64 => cpu_csv::<f64>(&scene, &rays, a.all),
         Precision::F32 => {
-            let auto = super::is_auto(a.backend)?;
-            match super::open_backend(a.backend, Workload::Trace)? {
+            let (selected, auto) = super::open_backend(a.backend, Workload::Trace)?;
+            match selected {
                 Selected::Cpu => cpu_csv::<f32>(&scene, &rays, a.all),
                 Selected::Gpu(ctx) => super::gpu_or_cpu(
                     auto,

@@ -33,17 +33,17 @@ pub fn should_disable_device_select(get: impl Fn(&str) -> Option<std::ffi::OsStr
 
 /// A Vulkan-only wgpu instance. Its flags come from the environment as wgpu's own
 /// (`WGPU_DEBUG`, `WGPU_VALIDATION`, ...).
-pub fn headless_instance() -> Result<wgpu::Instance, GpuError> {
+pub fn headless_instance() -> wgpu::Instance {
     let desc = wgpu::InstanceDescriptor {
         backends: wgpu::Backends::VULKAN,
         ..wgpu::InstanceDescriptor::new_without_display_handle_from_env()
     };
-    Ok(wgpu::Instance::new(desc))
+    wgpu::Instance::new(desc)
 }
 
 /// The Vulkan adapter strahl uses: a discrete GPU preferred, a software device (lavapipe) last.
 pub fn request_adapter() -> Result<wgpu::Adapter, GpuError> {
-    let instance = headless_instance()?;
+    let instance = headless_instance();
     pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
         power_preference: wgpu::PowerPreference::HighPerformance,
         ..Default::default()
