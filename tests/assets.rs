@@ -33,7 +33,8 @@ fn checker_png() -> Vec<u8> {
 /// upright as seen from +z (glTF's uv (0, 0) is the image's top-left texel), a camera on +z
 /// looking at it along −z (the file's camera, or `camera: false` for none) and, with `light`,
 /// a directional light along −z of intensity π (a white diffuse surface facing it then has
-/// radiance 1). Positions, texture coordinates and indices as one binary buffer.
+/// radiance 1). Its material is unlit (`KHR_materials_unlit`): it shows exactly its texels,
+/// lit or not. Positions, texture coordinates and indices as one binary buffer.
 struct Quad {
     camera: bool,
     light: bool,
@@ -67,14 +68,14 @@ impl Quad {
         };
         let mut nodes = vec![r#"{"mesh": 0, "name": "quad"}"#.to_string()];
         let mut extensions = String::new();
-        let mut used = String::new();
+        let mut used = r#", "extensionsUsed": ["KHR_materials_unlit"]"#.to_string();
         if self.camera {
             nodes.push(r#"{"camera": 0, "translation": [0, 0, 3]}"#.into());
         }
         if self.light {
             nodes.push(r#"{"extensions": {"KHR_lights_punctual": {"light": 0}}}"#.into());
             extensions = r#", "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 3.14159265358979}]}}"#.into();
-            used = r#", "extensionsUsed": ["KHR_lights_punctual"]"#.into();
+            used = r#", "extensionsUsed": ["KHR_materials_unlit", "KHR_lights_punctual"]"#.into();
         }
         let roots: Vec<String> = (0..nodes.len()).map(|i| i.to_string()).collect();
         format!(
@@ -85,7 +86,7 @@ impl Quad {
   "nodes": [{nodes}],
   "cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.8, "aspectRatio": 1.0, "znear": 0.01}}}}],
   "meshes": [{{"name": "quad", "primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}}, "indices": 2, "material": 0}}]}}],
-  "materials": [{{"name": "checker", "pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0}}, "metallicFactor": 0.0}}}}],
+  "materials": [{{"name": "checker", "pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0}}}}, "extensions": {{"KHR_materials_unlit": {{}}}}}}],
   "textures": [{{"source": 0, "sampler": 0}}],
   "samplers": [{{"magFilter": 9728, "wrapS": 33071, "wrapT": 33071}}],
   "images": [{image}],
@@ -193,8 +194,7 @@ fn quadrant_pixels(img: &Image) -> [[f32; 3]; 4] {
 
 /// Texels land where the texture coordinates say, upright and not mirrored: the image shows the
 /// texture's top-left quadrant (red) at the top left, as a glTF viewer does from the file's
-/// camera, each quadrant with exactly its texel's linear value (white diffuse albedo under
-/// irradiance π: radiance = albedo).
+/// camera, each quadrant with exactly its texel's linear value (the unlit material shows it).
 fn check_quadrants(what: &str, img: &Image) {
     let got = quadrant_pixels(img);
     for (k, (g, code)) in got.iter().zip(QUADRANTS).enumerate() {
@@ -539,7 +539,7 @@ fn gltf_files_the_specification_allows_load() {
         .objects
         .iter()
         .flat_map(|o| match &o.geometry {
-            strahl::scene::Geometry::Mesh { uvs, .. } => uvs.clone(),
+            strahl::scene::Geometry::Mesh { attrs, .. } => attrs.uvs.clone(),
             _ => Vec::new(),
         })
         .collect();

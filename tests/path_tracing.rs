@@ -358,7 +358,9 @@ fn wavefront_and_megakernel_render_the_same_image() {
         let prep = Prepared::new(scene);
         if what != "mixed" {
             assert!(
-                !prep.gpu.environment.is_empty() && !prep.gpu.triangle_uvs.is_empty() && !prep.gpu.emitters.is_empty()
+                !prep.gpu.environment.is_empty()
+                    && !prep.gpu.triangle_attrs.is_empty()
+                    && !prep.gpu.emitters.is_empty()
             );
         }
         let frame = FrameParams { spp: 5, ..prep.frame(40, 30) };

@@ -34,7 +34,7 @@
 #import strahl::types::TextureInfo
 #endif
 #ifdef TEXTURES
-#import strahl::types::TriangleUv
+#import strahl::types::TriangleAttrs
 #endif
 #ifdef ENVIRONMENT
 #import strahl::types::Environment
@@ -124,7 +124,7 @@
 @group(0) @binding(12) var<storage, read> texels: array<u32>;
 #endif
 #ifdef TEXTURES
-@group(0) @binding(13) var<storage, read> triangle_uvs: array<TriangleUv>;
+@group(0) @binding(13) var<storage, read> triangle_attrs: array<TriangleAttrs>;
 #endif
 #ifdef ENVIRONMENT
 @group(0) @binding(14) var<storage, read> environment: array<Environment>;

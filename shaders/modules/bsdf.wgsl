@@ -1,10 +1,14 @@
 // Scattering for the path tracer: twin of src/render/bsdf.rs (Lambert, smooth and GGX-rough
-// conductors with Schlick's Fresnel, smooth dielectrics). wo points away from the surface, ns
+// conductors with Schlick's Fresnel, smooth dielectrics, glTF's metallic-roughness material). wo points away from the surface, ns
 // is the normal on wo's side; "weight" is f |cos| / pdf.
 #define_import_path strahl::bsdf
 
-#import strahl::types::{Material, MAT_MIRROR, MAT_DIELECTRIC}
+#import strahl::types::{Material, MAT_MIRROR, MAT_DIELECTRIC, MAT_PBR}
 #import strahl::shade::{fresnel_dielectric, reflect_dir, refract_dir}
+#import strahl::microfacet::{schlick, ggx_d, ggx_lambda, ggx_sample_visible}
+#ifdef PBR
+#import strahl::pbr::{pbr_lobes, pbr_fresnel}
+#endif
 
 const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.31830988618379067;
@@ -55,44 +59,61 @@ fn cosine_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
     return vec3<f32>(r * cos(phi), r * sin(phi), sqrt(max(1.0 - u1, 0.0)));
 }
 
-fn schlick(f0: vec3<f32>, cos_t: f32) -> vec3<f32> {
-    let m = clamp(1.0 - cos_t, 0.0, 1.0);
-    let m5 = m * m * m * m * m;
-    return f0 + (vec3<f32>(1.0) - f0) * m5;
-}
-
-fn ggx_d(alpha: f32, cos_h: f32) -> f32 {
-    let a2 = alpha * alpha;
-    let c2 = cos_h * cos_h;
-    let den = c2 * (a2 - 1.0) + 1.0;
-    return a2 / (PI * den * den);
-}
-
-fn ggx_lambda(alpha: f32, cos_t: f32) -> f32 {
-    let c2 = max(cos_t * cos_t, 1e-12);
-    let a2_tan2 = alpha * alpha * max(1.0 - c2, 0.0) / c2;
-    return 0.5 * (sqrt(1.0 + a2_tan2) - 1.0);
-}
-
-// Heitz, JCGT 2018, listing 1 (isotropic alpha), local frame z up.
-fn ggx_sample_visible(alpha: f32, wo: vec3<f32>, u1: f32, u2: f32) -> vec3<f32> {
-    let vh = normalize(vec3<f32>(alpha * wo.x, alpha * wo.y, wo.z));
-    let lensq = vh.x * vh.x + vh.y * vh.y;
-    var t1 = vec3<f32>(1.0, 0.0, 0.0);
-    if lensq > 0.0 {
-        t1 = vec3<f32>(-vh.y, vh.x, 0.0) / sqrt(lensq);
+#ifdef PBR
+fn pbr_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>) -> BsdfEval {
+    let cos_o = dot(wo, ns);
+    let cos_i = dot(wi, ns);
+    if cos_o <= 0.0 || cos_i <= 0.0 {
+        return BsdfEval(vec3<f32>(0.0), 0.0);
     }
-    let t2 = cross(vh, t1);
-    let r = sqrt(u1);
-    let phi = 2.0 * PI * u2;
-    let p1 = r * cos(phi);
-    let s = 0.5 * (1.0 + vh.z);
-    let p2 = (1.0 - s) * sqrt(max(1.0 - p1 * p1, 0.0)) + s * (r * sin(phi));
-    let nh = t1 * p1 + t2 * p2 + vh * sqrt(max(1.0 - p1 * p1 - p2 * p2, 0.0));
-    return normalize(vec3<f32>(alpha * nh.x, alpha * nh.y, max(nh.z, 0.0)));
+    let l = pbr_lobes(m, cos_o);
+    var f_cos = l.diffuse * (cos_i * INV_PI);
+    var pdf = (1.0 - l.p_spec) * cos_i * INV_PI;
+    let h = normalize(wo + wi);
+    let cos_h = dot(h, ns);
+    if cos_h > 0.0 {
+        let d = ggx_d(l.alpha, cos_h);
+        let lo = ggx_lambda(l.alpha, cos_o);
+        let li = ggx_lambda(l.alpha, cos_i);
+        let k = d / (4.0 * cos_o);
+        let f = pbr_fresnel(l, dot(wo, h));
+        f_cos += f * (k / (1.0 + lo + li));
+        pdf += l.p_spec * k / (1.0 + lo);
+    }
+    return BsdfEval(f_cos, pdf);
 }
+
+fn pbr_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, u: vec3<f32>) -> BsdfSample {
+    let none = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false);
+    let cos_o = dot(wo, ns);
+    if cos_o <= 0.0 {
+        return none;
+    }
+    let l = pbr_lobes(m, cos_o);
+    if l.p_spec <= 0.0 && max(l.diffuse.x, max(l.diffuse.y, l.diffuse.z)) <= 0.0 {
+        return none;
+    }
+    var dir: vec3<f32>;
+    if u.x < l.p_spec {
+        let h = to_world(ggx_sample_visible(l.alpha, to_local(wo, ns), u.y, u.z), ns);
+        dir = reflect_dir(-wo, h);
+    } else {
+        dir = normalize(to_world(cosine_hemisphere(u.y, u.z), ns));
+    }
+    let ev = pbr_eval(m, wo, dir, ns);
+    if !(ev.pdf > 0.0) {
+        return none;
+    }
+    return BsdfSample(dir, ev.f_cos / ev.pdf, ev.pdf, false, true);
+}
+#endif
 
 fn bsdf_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>) -> BsdfEval {
+#ifdef PBR
+    if m.kind == MAT_PBR {
+        return pbr_eval(m, wo, wi, ns);
+    }
+#endif
     let cos_i = dot(wi, ns);
     if cos_i <= 0.0 {
         return BsdfEval(vec3<f32>(0.0), 0.0);
@@ -121,6 +142,11 @@ fn bsdf_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>) -> BsdfEv
 
 fn bsdf_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<f32>) -> BsdfSample {
     let none = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false);
+#ifdef PBR
+    if m.kind == MAT_PBR {
+        return pbr_sample(m, wo, ns, u);
+    }
+#endif
 #ifdef DIELECTRIC
     if m.kind == MAT_DIELECTRIC {
         let cos_i = dot(wo, ns);

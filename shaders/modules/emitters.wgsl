@@ -19,9 +19,7 @@
 #import strahl::bindings::environment
 #import strahl::environment::env_sample
 #endif
-#ifdef TEXTURES
-#import strahl::texture::factor_at
-#endif
+#import strahl::surface::surface
 
 const TWO_PI: f32 = 6.28318530717959;
 
@@ -106,8 +104,6 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     var n = vec3<f32>(0.0, 0.0, 1.0);
     var material = 0u;
     var found = false;
-    // Barycentric weights of vb and vc at a triangle's sampled point.
-    var bc = vec2<f32>(0.0);
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
 #if TRIANGLE_PARTS > 1
@@ -118,8 +114,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         let su = sqrt(u.y);
         let b0 = 1.0 - su;
         let b1 = u.z * su;
-        bc = vec2<f32>(b1, 1.0 - b0 - b1);
-        q = t.va * b0 + t.vb * b1 + t.vc * bc.y;
+        q = t.va * b0 + t.vb * b1 + t.vc * (1.0 - b0 - b1);
         n = normalize(cross(t.vb - t.va, t.vc - t.va));
         material = t.material;
         found = true;
@@ -150,11 +145,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
         return none;
     }
     let pdf = area_pdf(m.radiance, d2, cos_l);
-    var radiance = m.radiance;
-#ifdef TEXTURES
-    if kind == KIND_TRIANGLE {
-        radiance = radiance * factor_at(m.radiance_texture, i, bc);
-    }
-#endif
+    // The emission texture at the sampled point (its density is that of the untextured radiance).
+    let radiance = surface(m, e.source, q, n).m.radiance;
     return LightSample(dir, dist, radiance / pdf, pdf, true);
 }

@@ -74,7 +74,7 @@ fn env_background(d: vec3<f32>) -> vec3<f32> {
     let e = environment[0];
 #ifdef ENV_MAP
     if (e.flags & ENV_FLAG_MAP) != 0u {
-        return e.radiance * texture_sample(textures[e.texture], map_uv(e, d));
+        return e.radiance * texture_sample(textures[e.texture], map_uv(e, d)).xyz;
     }
 #endif
     return e.radiance;

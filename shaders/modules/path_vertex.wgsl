@@ -10,7 +10,7 @@
 // roulette when it applies.
 #define_import_path strahl::path_vertex
 
-#import strahl::types::{MAT_EMISSIVE, KIND_TRIANGLE, KIND_SPHERE, INDEX_BITS, F32_MAX}
+#import strahl::types::{Material, MAT_EMISSIVE, MAT_PBR, MAT_DIELECTRIC, MATERIAL_UNLIT, KIND_TRIANGLE, KIND_SPHERE, INDEX_BITS, F32_MAX}
 #import strahl::bindings::{frame, materials}
 #ifdef LIGHTS
 #import strahl::bindings::lights
@@ -21,11 +21,9 @@
 #import strahl::spawn::spawn_origin
 #import strahl::raygen::ray_through
 #import strahl::sampler::{sampler_new, next_f32, uniform3, pixel_jitter}
-#import strahl::bsdf::{bsdf_sample, bsdf_eval, is_specular}
+#import strahl::bsdf::{BsdfEval, bsdf_sample, bsdf_eval, is_specular}
 #import strahl::emitters::{sample_light, area_pdf, emitted_cos}
-#ifdef TEXTURES
-#import strahl::texture::textured
-#endif
+#import strahl::surface::{surface, shading_frame}
 #ifdef ENVIRONMENT
 #import strahl::environment::{env_background, env_pdf}
 #endif
@@ -70,6 +68,14 @@ fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
 
 fn max3(v: vec3<f32>) -> f32 {
     return max(v.x, max(v.y, v.z));
+}
+
+// bsdf_eval about the shading normal for directions above the face only (render::path::eval_above).
+fn eval_above(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>, ng: vec3<f32>) -> BsdfEval {
+    if dot(wi, ng) <= 0.0 {
+        return BsdfEval(vec3<f32>(0.0), 0.0);
+    }
+    return bsdf_eval(m, wo, wi, ns);
 }
 
 // The camera ray and random stream of sample s of pixel (x, y).
@@ -121,20 +127,20 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
         return false;
     }
     let untextured = materials[hit_material(hit)];
-#ifdef TEXTURES
-    let m = textured(untextured, hit.prim_ref, o + d * hit.t);
-#else
-    let m = untextured;
-#endif
     let n = hit_normal(hit, o, d);
+    let wo = -d;
+    let sf = surface(untextured, hit.prim_ref, o + d * hit.t, n);
+    let m = sf.m;
     let front = dot(d, n) < 0.0;
-    let ns = select(-n, n, front);
+    let fr = shading_frame(m, front, n, sf.normal, wo);
+    let ng = fr.ng;
+    let ns = fr.ns;
 #ifdef EMISSIVE
-    if m.kind == MAT_EMISSIVE {
+    if m.kind == MAT_EMISSIVE || m.kind == MAT_PBR {
         let cos_l = emitted_cos(m.flags, -dot(d, n));
         if cos_l > 0.0 {
             let kind = hit.prim_ref >> INDEX_BITS;
-            let sampled = kind == KIND_TRIANGLE || kind == KIND_SPHERE;
+            let sampled = (m.flags & MATERIAL_UNLIT) == 0u && (kind == KIND_TRIANGLE || kind == KIND_SPHERE);
             var w = 1.0;
             if (*p).specular == 0u && sampled {
                 // Emitters are sampled by their untextured radiance (emitters::sample_light).
@@ -147,18 +153,17 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
     if seg == frame.max_depth {
         return false;
     }
-    let wo = -d;
     let u_light = uniform3(rng);
     if !is_specular(m) {
         let x = o + d * hit.t;
-        let so = spawn_origin(o, d, hit.t, ns);
+        let so = spawn_origin(o, d, hit.t, ng);
 #ifdef LIGHTS
         // Point and directional lights, each at every vertex (render::path: chosen by power
         // with the area lights, one could be starved).
         for (var i = 0u; i < frame.num_lights; i += 1u) {
             let dl = delta_light(lights[i], x);
             if dl.valid {
-                let ev = bsdf_eval(m, wo, dl.dir, ns);
+                let ev = eval_above(m, wo, dl.dir, ns, ng);
                 if max3(ev.f_cos) > 0.0 && !occluded(so, dl.dir, 0.0, dl.dist * SHADOW_REACH) {
                     (*p).sum += (*p).beta * ev.f_cos * dl.value;
                 }
@@ -167,7 +172,7 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
 #endif
         let ls = sample_light(x, u_light);
         if ls.valid {
-            let ev = bsdf_eval(m, wo, ls.dir, ns);
+            let ev = eval_above(m, wo, ls.dir, ns, ng);
             if max3(ev.f_cos) > 0.0 {
                 let value = (*p).beta * ev.f_cos * ls.value * power_heuristic(ls.pdf, ev.pdf);
                 *nee = NeeRay(so, ls.dist * SHADOW_REACH, ls.dir, 1u, value, 0u);
@@ -176,6 +181,10 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
     }
     let bs = bsdf_sample(m, wo, ns, front, uniform3(rng));
     if !bs.valid {
+        return false;
+    }
+    // A reflection below the surface's face ends the path (render::path: no leaks).
+    if m.kind != MAT_DIELECTRIC && dot(bs.dir, ng) <= 0.0 {
         return false;
     }
     (*p).beta = (*p).beta * bs.weight;

@@ -5,13 +5,14 @@
 // SHADOW_CROSSING (DIELECTRIC or EMISSIVE: shadow rays may pass surfaces).
 #define_import_path strahl::shade
 
-#import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, LIGHT_POINT, F32_MAX}
+#import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, MAT_PBR, LIGHT_POINT, F32_MAX}
 #import strahl::bindings::{frame, materials, lights}
 #import strahl::traverse::{nearest_hit, occluded, hit_normal, hit_material}
 #import strahl::spawn::spawn_origin
 #import strahl::raygen::primary_ray
-#ifdef TEXTURES
-#import strahl::texture::textured
+#import strahl::surface::{surface, shading_frame}
+#ifdef PBR
+#import strahl::pbr::pbr_lobes
 #endif
 #ifdef ENVIRONMENT
 #import strahl::environment::{env_background, env_diffuse}
@@ -85,7 +86,7 @@ fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec
 }
 #endif
 
-fn direct_light(o: vec3<f32>, d: vec3<f32>, t: f32, ns: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
+fn direct_light(o: vec3<f32>, d: vec3<f32>, t: f32, ng: vec3<f32>, ns: vec3<f32>, albedo: vec3<f32>) -> vec3<f32> {
     let p = o + d * t;
     var sum = frame.ambient;
 #ifdef ENVIRONMENT
@@ -119,10 +120,10 @@ fn direct_light(o: vec3<f32>, d: vec3<f32>, t: f32, ns: vec3<f32>, albedo: vec3<
             e = light.intensity;
         }
         let cos = dot(ns, l);
-        if cos <= 0.0 {
+        if cos <= 0.0 || dot(ng, l) <= 0.0 {
             continue;
         }
-        let tr = shadow_transmittance(o, d, t, ns, l, dist);
+        let tr = shadow_transmittance(o, d, t, ng, l, dist);
         sum += e * tr * (cos * INV_PI);
     }
 #endif
@@ -183,14 +184,19 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
 #endif
             continue;
         }
-#ifdef TEXTURES
-        let m = textured(materials[hit_material(hit)], hit.prim_ref, cur.origin + cur.dir * hit.t);
-#else
-        let m = materials[hit_material(hit)];
-#endif
         let n = hit_normal(hit, cur.origin, cur.dir);
+        let s = surface(materials[hit_material(hit)], hit.prim_ref, cur.origin + cur.dir * hit.t, n);
+        let m = s.m;
         let front = dot(cur.dir, n) < 0.0;
-        let ns = select(-n, n, front);
+        let fr = shading_frame(m, front, n, s.normal, -cur.dir);
+        let ng = fr.ng;
+        let ns = fr.ns;
+        // A mirror direction about the shading normal that falls below the face is taken about
+        // the face's normal instead.
+        var mirrored = reflect_dir(cur.dir, ns);
+        if dot(mirrored, ng) <= 0.0 {
+            mirrored = reflect_dir(cur.dir, ng);
+        }
         var handled = false;
 #ifdef EMISSIVE
         if m.kind == MAT_EMISSIVE {
@@ -201,7 +207,22 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
 #ifdef MIRROR
         if m.kind == MAT_MIRROR {
             if cur.depth < max_depth && ray_stack_size(&rs) < WHITTED_STACK {
-                ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, ns), reflect_dir(cur.dir, ns), cur.weight * m.color, cur.depth + 1u));
+                ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, ng), mirrored, cur.weight * m.color, cur.depth + 1u));
+            }
+            handled = true;
+        }
+#endif
+#ifdef PBR
+        if m.kind == MAT_PBR {
+            // Whitted follows one mirror ray for the lobe's sharp part (render::shade).
+            let l = pbr_lobes(m, dot(-cur.dir, ns));
+            let rough = 1.0 - clamp(m.roughness, 0.0, 1.0);
+            let sharp = rough * rough;
+            let diffuse = l.diffuse + l.spec_albedo * (1.0 - sharp);
+            color += cur.weight * m.radiance;
+            color += cur.weight * direct_light(cur.origin, cur.dir, hit.t, ng, ns, diffuse);
+            if cur.depth < max_depth && ray_stack_size(&rs) < WHITTED_STACK && sharp > 0.0 {
+                ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, ng), mirrored, cur.weight * (l.spec_albedo * sharp), cur.depth + 1u));
             }
             handled = true;
         }
@@ -224,7 +245,7 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
         }
 #endif
         if !handled {
-            color += cur.weight * direct_light(cur.origin, cur.dir, hit.t, ns, m.color);
+            color += cur.weight * direct_light(cur.origin, cur.dir, hit.t, ng, ns, m.color);
         }
     }
     return color;

@@ -98,21 +98,34 @@ struct Material {
     // 1 + index in `textures` of the image multiplying color / radiance; 0: none.
     color_texture: u32,
     radiance_texture: u32,
+    // pbr: metalness (roughness is then perceptual), the metallic-roughness and normal maps.
+    metallic: f32,
+    metal_rough_texture: u32,
+    normal_texture: u32,
+    normal_scale: f32,
 }
 
-// An image in `texels` (gpu_types::GpuTexture).
+// A use of an image in `texels` (gpu_types::GpuTexture): the texture-coordinate transform
+// (a, b, d, e) and offset (c, f) of (a u + b v + c, d u + e v + f).
 struct TextureInfo {
     width: u32,
     height: u32,
     offset: u32,
     flags: u32,
+    linear: vec4<f32>,
+    offset_uv: vec2<f32>,
+    pad: vec2<u32>,
 }
 
-// Texture coordinates of a triangle's vertices (gpu_types::GpuTriangleUv).
-struct TriangleUv {
-    a: vec2<f32>,
-    b: vec2<f32>,
-    c: vec2<f32>,
+// What a triangle's vertices carry besides positions (gpu_types::GpuTriangleAttrs): two sets
+// of texture coordinates, octahedral normals (two snorm16), RGBA8 colours, ATTR_* flags.
+struct TriangleAttrs {
+    uv: array<vec2<f32>, 3>,
+    second_uv: array<vec2<f32>, 3>,
+    normal: array<u32, 3>,
+    color: array<u32, 3>,
+    flags: u32,
+    pad: u32,
 }
 
 // The environment (gpu_types::GpuEnvironment).
@@ -185,10 +198,12 @@ const PART_CAP_P2: u32 = #{PART_CAP_P2};
 const MAT_MIRROR: u32 = #{MAT_MIRROR};
 const MAT_DIELECTRIC: u32 = #{MAT_DIELECTRIC};
 const MAT_EMISSIVE: u32 = #{MAT_EMISSIVE};
+const MAT_PBR: u32 = #{MAT_PBR};
 
 const LIGHT_POINT: u32 = #{LIGHT_POINT};
 const LIGHT_STAND_IN: u32 = #{LIGHT_STAND_IN};
 const MATERIAL_TWO_SIDED: u32 = #{MATERIAL_TWO_SIDED};
+const MATERIAL_UNLIT: u32 = #{MATERIAL_UNLIT};
 
 const FRAME_ACCUMULATE: u32 = #{FRAME_ACCUMULATE};
 const FRAME_ENVIRONMENT: u32 = #{FRAME_ENVIRONMENT};
@@ -200,6 +215,10 @@ const TEXTURE_WRAP_U_SHIFT: u32 = #{TEXTURE_WRAP_U_SHIFT};
 const TEXTURE_WRAP_V_SHIFT: u32 = #{TEXTURE_WRAP_V_SHIFT};
 const TEXTURE_NEAREST: u32 = #{TEXTURE_NEAREST};
 const TEXTURE_LINEAR_RGB: u32 = #{TEXTURE_LINEAR_RGB};
+const TEXTURE_DATA: u32 = #{TEXTURE_DATA};
+const TEXTURE_UV1: u32 = #{TEXTURE_UV1};
+const ATTR_NORMALS: u32 = #{ATTR_NORMALS};
+const ATTR_COLORS: u32 = #{ATTR_COLORS};
 const WRAP_REPEAT: u32 = #{WRAP_REPEAT};
 const WRAP_CLAMP: u32 = #{WRAP_CLAMP};
 const WRAP_MIRROR: u32 = #{WRAP_MIRROR};

@@ -95,8 +95,6 @@ pub fn sample(g: &FlatScene, frame: &FrameParams, p: V3<f32>, u: [f32; 3]) -> Op
     }
     let e = &g.emitters[select(&g.emitters[..frame.num_emitters as usize], u0)];
     let r = PrimRef(e.source);
-    // Barycentric weights of b and c at the sampled point of a triangle.
-    let (mut b1, mut b2) = (0.0f32, 0.0f32);
     let (q, n, material) = match r.kind() {
         PrimKind::Triangle => {
             let t = &g.triangles[r.index()];
@@ -104,7 +102,7 @@ pub fn sample(g: &FlatScene, frame: &FrameParams, p: V3<f32>, u: [f32; 3]) -> Op
             // Uniform on the triangle (Turk 1990 / pbrt-v4 A.5.5).
             let su = u[1].sqrt();
             let b0 = 1.0 - su;
-            (b1, b2) = (u[2] * su, 1.0 - b0 - u[2] * su);
+            let (b1, b2) = (u[2] * su, 1.0 - b0 - u[2] * su);
             (a * b0 + b * b1 + c * b2, (b - a).cross(c - a).normalize(), t.material)
         }
         _ => {
@@ -126,12 +124,9 @@ pub fn sample(g: &FlatScene, frame: &FrameParams, p: V3<f32>, u: [f32; 3]) -> Op
         return None;
     }
     let pdf = area_pdf(frame, m.radiance, d2, cos_l);
-    let mut radiance = V3::from_array(m.radiance);
-    if r.kind() == PrimKind::Triangle {
-        // An emission texture at the sampled point (its density is that of the untextured
-        // radiance, which both sampling and MIS use).
-        radiance = radiance.mul_elem(super::texture::factor_at(g, m.radiance_texture, r.index(), b1, b2));
-    }
+    // The emission texture at the sampled point (its density is that of the untextured
+    // radiance, which both sampling and MIS use).
+    let radiance = V3::from_array(super::surface::surface(g, m, r, q, n).m.radiance);
     Some(LightSample { dir, dist, value: radiance / pdf, pdf })
 }
 

@@ -96,9 +96,9 @@ pub fn build(env: &Environment, texture: u32, emitters: bool) -> (GpuEnvironment
             }
             let (w, h) = (map.width as usize, map.height as usize);
             (g.width, g.height) = (map.width, map.height);
-            let texels = match &map.texels {
+            let texels = match &*map.texels {
                 Texels::Linear(t) => t,
-                Texels::Srgb8(_) => unreachable!("environment maps are decoded as linear radiance"),
+                Texels::Rgba8(_) => unreachable!("environment maps are decoded as linear radiance"),
             };
             let d_omega = |j: usize| {
                 let theta = std::f64::consts::PI * (j as f64 + 0.5) / h as f64;
@@ -327,14 +327,7 @@ mod tests {
 
     fn map(w: u32, h: u32, f: impl Fn(u32, u32) -> f32) -> Environment {
         let texels = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| [f(x, y); 3]).collect();
-        let t = Texture {
-            name: "m".into(),
-            width: w,
-            height: h,
-            texels: Texels::Linear(texels),
-            wrap: [Wrap::Repeat, Wrap::Clamp],
-            nearest: false,
-        };
+        let t = Texture { wrap: [Wrap::Repeat, Wrap::Clamp], ..Texture::new("m", w, h, Texels::Linear(texels)) };
         Environment { map: Some(t), ..Environment::constant([1.0; 3]) }
     }
 

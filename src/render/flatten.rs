@@ -9,7 +9,7 @@ use crate::accel::gpu_bvh::GpuBvh;
 use crate::gpu_types::*;
 use crate::math::V3;
 use crate::primitives::{PrimKind, PrimRef, Primitives, Tagged};
-use crate::scene::{Geometry, Light, MaterialKind, Scene};
+use crate::scene::{Geometry, Light, Scene};
 
 const PI: f64 = std::f64::consts::PI;
 
@@ -81,9 +81,13 @@ impl FlatScene {
                     radiance: rgb(m.radiance),
                     ior: m.ior as f32,
                     roughness: m.roughness as f32,
-                    flags: if m.two_sided { MATERIAL_TWO_SIDED } else { 0 },
+                    flags: if m.two_sided { MATERIAL_TWO_SIDED } else { 0 } | if m.unlit { MATERIAL_UNLIT } else { 0 },
                     color_texture: m.color_texture.map_or(0, |t| t + 1),
                     radiance_texture: m.radiance_texture.map_or(0, |t| t + 1),
+                    metallic: m.metallic as f32,
+                    metal_rough_texture: m.metal_rough_texture.map_or(0, |t| t + 1),
+                    normal_texture: m.normal_texture.map_or(0, |t| t + 1),
+                    normal_scale: m.normal_scale as f32,
                 })
                 .collect(),
             lights: scene
@@ -108,7 +112,7 @@ impl FlatScene {
             emitter_norm: 0.0,
             textures: Vec::new(),
             texels: Vec::new(),
-            triangle_uvs: Vec::new(),
+            triangle_attrs: Vec::new(),
             environment: Vec::new(),
             env_distribution: Vec::new(),
         };
@@ -123,8 +127,8 @@ impl FlatScene {
         if !scene.textures.is_empty() || map.is_some() {
             (g.textures, g.texels) = super::texture::pack(scene.textures.iter().chain(map));
         }
-        if g.materials.iter().any(|m| m.color_texture != 0 || m.radiance_texture != 0) {
-            g.triangle_uvs = super::texture::triangle_uvs(scene, prims);
+        if needs_attributes(scene) {
+            g.triangle_attrs = super::texture::triangle_attrs(scene, prims);
         }
         if let Some(env) = &scene.environment {
             let (e, distribution) = super::environment::build(env, scene.textures.len() as u32, !g.emitters.is_empty());
@@ -135,6 +139,20 @@ impl FlatScene {
         }
         g
     }
+}
+
+/// Whether shading reads per-triangle attributes: a material has a texture, or a mesh has
+/// normals or colours.
+pub fn needs_attributes(scene: &Scene) -> bool {
+    scene.materials.iter().any(|m| {
+        m.color_texture.is_some()
+            || m.radiance_texture.is_some()
+            || m.metal_rough_texture.is_some()
+            || m.normal_texture.is_some()
+    }) || scene.objects.iter().any(|o| match &o.geometry {
+        Geometry::Mesh { attrs, .. } => !attrs.normals.is_empty() || !attrs.colors.is_empty(),
+        _ => false,
+    })
 }
 
 /// Whitted mode has no area lights: each emissive object lights the scene as a point light
@@ -149,7 +167,9 @@ pub fn stand_in_lights(scene: &Scene) -> Vec<GpuLight> {
         .materials
         .iter()
         .map(|m| {
-            if m.kind != MaterialKind::Emissive || m.radiance.iter().all(|&c| c <= 0.0) {
+            // pbr emission (a lit screen or lamp on an asset) shows where it is seen but is no
+            // stand-in: the point would sit inside the model, shadowed by its own surface.
+            if m.kind != crate::scene::MaterialKind::Emissive || !m.is_light() {
                 return None;
             }
             let scale = m.radiance_texture.map_or([1.0; 3], |t| scene.textures[t as usize].mean());
@@ -213,8 +233,7 @@ fn area_centroid(tris: &[crate::geometry::Triangle<f64>]) -> (V3<f64>, f64) {
 pub fn build_emitters(g: &FlatScene) -> (Vec<GpuEmitter>, f32) {
     let emissive = |material: u32| {
         let m = &g.materials[material as usize];
-        (m.kind() == MaterialKind::Emissive && super::emitters::mean(m.radiance) > 0.0)
-            .then(|| super::emitters::mean(m.radiance) as f64)
+        (m.is_light() && super::emitters::mean(m.radiance) > 0.0).then(|| super::emitters::mean(m.radiance) as f64)
     };
     let mut entries: Vec<(u32, u32, f64)> = Vec::new();
     for (i, t) in g.triangles.iter().enumerate() {

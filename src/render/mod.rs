@@ -10,10 +10,13 @@ pub mod camera;
 pub mod emitters;
 pub mod environment;
 pub mod flatten;
+pub mod microfacet;
 pub mod path;
+pub mod pbr;
 pub mod sampler;
 pub mod shade;
 pub mod spawn;
+pub mod surface;
 pub mod texture;
 
 use crate::accel::{Bvh, WideBvh};

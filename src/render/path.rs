@@ -25,8 +25,9 @@ use super::environment;
 use super::sampler::{Sampler, pixel_jitter};
 use super::shade::ShadeInputs;
 use super::spawn::spawn_origin;
-use super::texture;
+use super::surface;
 use crate::accel::wide_traverse;
+use crate::gpu_types::GpuMaterial;
 use crate::math::{Ray, V3};
 use crate::primitives::{Hit, PrimKind};
 use crate::scene::MaterialKind;
@@ -117,13 +118,15 @@ pub fn shade_vertex(
         return false;
     };
     let untextured = &g.materials[hit.tag.material as usize];
-    let m = &texture::textured(g, untextured, hit.prim_ref, ray.at(hit.t));
+    let wo = -ray.dir;
+    let s = surface::surface(g, untextured, hit.prim_ref, ray.at(hit.t), hit.normal);
+    let m = &s.m;
     let front = ray.dir.dot(hit.normal) < 0.0;
-    let ns = if front { hit.normal } else { -hit.normal };
-    if m.kind() == MaterialKind::Emissive {
+    let (ng, ns) = surface::shading_frame(m, front, hit.normal, s.normal, wo);
+    if m.kind() == MaterialKind::Emissive || m.kind() == MaterialKind::Pbr {
         let cos_l = emitted_cos(m.flags, -ray.dir.dot(hit.normal));
         if cos_l > 0.0 {
-            let sampled = matches!(hit.prim_ref.kind(), PrimKind::Triangle | PrimKind::Sphere);
+            let sampled = m.is_light() && matches!(hit.prim_ref.kind(), PrimKind::Triangle | PrimKind::Sphere);
             let w = if p.specular || !sampled {
                 1.0
             } else {
@@ -136,20 +139,19 @@ pub fn shade_vertex(
     if p.seg == f.max_depth {
         return false;
     }
-    let wo = -ray.dir;
     let u_light = uniform3(rng);
     if !is_specular(m) {
         let x = ray.at(hit.t);
-        let origin = spawn_origin(&ray, hit.t, ns);
+        let origin = spawn_origin(&ray, hit.t, ng);
         for l in &g.lights[..f.num_lights as usize] {
             let Some(ls) = emitters::delta_light(l, x) else { continue };
-            let (fc, _) = bsdf::eval(m, wo, ls.dir, ns);
+            let (fc, _) = eval_above(m, wo, ls.dir, ns, ng);
             if fc.max_component() > 0.0 && !occluded(inp, &Ray::new(origin, ls.dir), ls.dist * SHADOW_REACH) {
                 p.sum += p.beta.mul_elem(fc).mul_elem(ls.value);
             }
         }
         if let Some(ls) = emitters::sample(g, f, x, u_light) {
-            let (fc, pdf) = bsdf::eval(m, wo, ls.dir, ns);
+            let (fc, pdf) = eval_above(m, wo, ls.dir, ns, ng);
             if fc.max_component() > 0.0 {
                 let value = p.beta.mul_elem(fc).mul_elem(ls.value) * power_heuristic(ls.pdf, pdf);
                 *nee = Some(NeeRay { ray: Ray::new(origin, ls.dir), dist: ls.dist * SHADOW_REACH, value });
@@ -159,6 +161,11 @@ pub fn shade_vertex(
     let Some(bs) = bsdf::sample(m, wo, ns, front, uniform3(rng)) else {
         return false;
     };
+    // A reflection the shading normal allows but the surface does not (below its face) ends
+    // the path: continuing it would leak light through the surface.
+    if m.kind() != MaterialKind::Dielectric && bs.dir.dot(ng) <= 0.0 {
+        return false;
+    }
     p.beta = p.beta.mul_elem(bs.weight);
     p.specular = bs.specular;
     p.pdf_bsdf = bs.pdf;
@@ -173,6 +180,16 @@ pub fn shade_vertex(
     p.ray = Ray::new(spawn_origin(&ray, hit.t, side), bs.dir);
     p.seg += 1;
     true
+}
+
+/// [`bsdf::eval`] about the shading normal, for directions above the surface's face only: light
+/// from below the face reaches no point of it, whatever the shading normal says.
+#[inline]
+pub fn eval_above(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>, ng: V3<f32>) -> (V3<f32>, f32) {
+    if wi.dot(ng) <= 0.0 {
+        return (V3::zero(), 0.0);
+    }
+    bsdf::eval(m, wo, wi, ns)
 }
 
 /// Whether anything lies in (0, tmax) along the shadow ray.

@@ -9,7 +9,7 @@
 use super::camera::primary_ray;
 use super::environment;
 use super::spawn::spawn_origin;
-use super::texture;
+use super::{pbr, surface};
 use crate::accel::{WideBvh, wide_traverse};
 use crate::gpu_types::{FlatScene, FrameParams, GpuLight, GpuMaterial, LIGHT_POINT};
 use crate::math::{Ray, V3};
@@ -84,19 +84,20 @@ fn shadow_transmittance(inp: &ShadeInputs, from: &Ray<f32>, t: f32, n: V3<f32>, 
     V3::zero()
 }
 
-/// Direct light on a diffuse surface hit at `t` along `ray`, shading normal `ns`: ambient
-/// plus Σ E·cosθ/π over unshadowed lights.
-fn direct_light(inp: &ShadeInputs, ray: &Ray<f32>, t: f32, ns: V3<f32>, albedo: V3<f32>) -> V3<f32> {
+/// Direct light on a diffuse surface hit at `t` along `ray`, face normal `ng` and shading
+/// normal `ns` (both on the ray's side): ambient plus Σ E·cosθ/π over unshadowed lights above
+/// the face.
+fn direct_light(inp: &ShadeInputs, ray: &Ray<f32>, t: f32, ng: V3<f32>, ns: V3<f32>, albedo: V3<f32>) -> V3<f32> {
     let p = ray.at(t);
     // The environment's unshadowed diffuse light joins the ambient term.
     let mut sum = V3::from_array(inp.frame.ambient) + environment::diffuse(inp.gpu, ns);
     for light in &inp.gpu.lights[..inp.frame.num_lights as usize] {
         let (l, dist, e) = light_at(light, p);
         let cos = ns.dot(l);
-        if cos <= 0.0 {
+        if cos <= 0.0 || ng.dot(l) <= 0.0 {
             continue;
         }
-        let tr = shadow_transmittance(inp, ray, t, ns, l, dist);
+        let tr = shadow_transmittance(inp, ray, t, ng, l, dist);
         sum += e.mul_elem(tr) * (cos * INV_PI);
     }
     albedo.mul_elem(sum)
@@ -131,21 +132,45 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
             color += weight.mul_elem(environment::background(inp.gpu, inp.frame, ray.dir));
             continue;
         };
-        let m: &GpuMaterial =
-            &texture::textured(inp.gpu, &inp.gpu.materials[hit.tag.material as usize], hit.prim_ref, ray.at(hit.t));
+        let untextured = &inp.gpu.materials[hit.tag.material as usize];
+        let s = surface::surface(inp.gpu, untextured, hit.prim_ref, ray.at(hit.t), hit.normal);
+        let m: &GpuMaterial = &s.m;
         let front = ray.dir.dot(hit.normal) < 0.0;
-        let ns = if front { hit.normal } else { -hit.normal };
+        let (ng, ns) = surface::shading_frame(m, front, hit.normal, s.normal, -ray.dir);
         let albedo = V3::from_array(m.color);
+        // A mirror direction about the shading normal that falls below the face is taken
+        // about the face's normal instead.
+        let mirrored = || {
+            let r = reflect(ray.dir, ns);
+            if r.dot(ng) > 0.0 { r } else { reflect(ray.dir, ng) }
+        };
         match m.kind() {
             MaterialKind::Emissive => {
                 color += weight.mul_elem(V3::from_array(m.radiance));
             }
             MaterialKind::Mirror => {
                 if depth < max_depth && sp < WHITTED_STACK {
-                    let r = reflect(ray.dir, ns);
                     stack[sp] = Pending {
-                        ray: Ray::new(spawn_origin(&ray, hit.t, ns), r),
+                        ray: Ray::new(spawn_origin(&ray, hit.t, ng), mirrored()),
                         weight: weight.mul_elem(albedo),
+                        depth: depth + 1,
+                    };
+                    sp += 1;
+                }
+            }
+            MaterialKind::Pbr => {
+                // Whitted follows one mirror ray: the lobe's sharp part (1 − r)² goes there,
+                // the rest, which only a path tracer resolves, joins the diffuse light.
+                let l = pbr::pbr_lobes(m, (-ray.dir).dot(ns));
+                let rough = 1.0 - m.roughness.clamp(0.0, 1.0);
+                let sharp = rough * rough;
+                let diffuse = l.diffuse + l.spec_albedo * (1.0 - sharp);
+                color += weight.mul_elem(V3::from_array(m.radiance));
+                color += weight.mul_elem(direct_light(inp, &ray, hit.t, ng, ns, diffuse));
+                if depth < max_depth && sp < WHITTED_STACK && sharp > 0.0 {
+                    stack[sp] = Pending {
+                        ray: Ray::new(spawn_origin(&ray, hit.t, ng), mirrored()),
+                        weight: weight.mul_elem(l.spec_albedo * sharp),
                         depth: depth + 1,
                     };
                     sp += 1;
@@ -177,7 +202,7 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
                 }
             }
             MaterialKind::Diffuse => {
-                color += weight.mul_elem(direct_light(inp, &ray, hit.t, ns, albedo));
+                color += weight.mul_elem(direct_light(inp, &ray, hit.t, ng, ns, albedo));
             }
         }
     }

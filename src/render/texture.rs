@@ -13,51 +13,86 @@
 //! 128 MiB, 32 M colour texels); the error says so before anything is allocated.
 
 use crate::gpu_types::{
-    FlatScene, GpuMaterial, GpuTexture, GpuTriangleUv, SRGB_TABLE_WORDS, TEXTURE_LINEAR_RGB, TEXTURE_NEAREST,
-    TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT,
+    ATTR_COLORS, ATTR_NORMALS, GpuTexture, GpuTriangleAttrs, SRGB_TABLE_WORDS, TEXTURE_DATA, TEXTURE_LINEAR_RGB,
+    TEXTURE_NEAREST, TEXTURE_UV1, TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT, encode_octahedral, encode_unorm8x4,
 };
 use crate::math::V3;
-use crate::primitives::{PrimKind, PrimRef, Primitives};
+use crate::primitives::Primitives;
 use crate::scene::texture::{Texels, Wrap, srgb_to_linear};
 use crate::scene::{Geometry, Scene, Texture};
+use std::collections::HashMap;
+use std::sync::Arc;
 
-/// The texture table and the texel buffer of `textures`, in order.
+/// The texture table and the texel buffer of `textures` (uses of images), in order; uses of
+/// one image (the same shared texels) share its words.
 pub fn pack<'a>(textures: impl Iterator<Item = &'a Texture>) -> (Vec<GpuTexture>, Vec<u32>) {
     let mut texels: Vec<u32> = (0..=255u8).map(|c| srgb_to_linear(c).to_bits()).collect();
     debug_assert_eq!(texels.len(), SRGB_TABLE_WORDS as usize);
     let mut infos = Vec::new();
+    let mut packed: HashMap<*const Texels, u32> = HashMap::new();
     for t in textures {
         let mut flags = (t.wrap[0] as u32) << TEXTURE_WRAP_U_SHIFT | (t.wrap[1] as u32) << TEXTURE_WRAP_V_SHIFT;
         if t.nearest {
             flags |= TEXTURE_NEAREST;
         }
-        let offset = texels.len() as u32;
-        match &t.texels {
-            Texels::Srgb8(px) => {
-                texels.extend(px.iter().map(|p| p[0] as u32 | (p[1] as u32) << 8 | (p[2] as u32) << 16))
-            }
-            Texels::Linear(px) => {
-                flags |= TEXTURE_LINEAR_RGB;
-                texels.extend(px.iter().flat_map(|p| p.map(f32::to_bits)));
-            }
+        if t.data {
+            flags |= TEXTURE_DATA;
         }
-        infos.push(GpuTexture { width: t.width, height: t.height, offset, flags });
+        if t.texcoord == 1 {
+            flags |= TEXTURE_UV1;
+        }
+        if matches!(*t.texels, Texels::Linear(_)) {
+            flags |= TEXTURE_LINEAR_RGB;
+        }
+        let offset = *packed.entry(Arc::as_ptr(&t.texels)).or_insert_with(|| {
+            let offset = texels.len() as u32;
+            match &*t.texels {
+                Texels::Rgba8(px) => texels.extend(px.iter().map(|p| u32::from_le_bytes(*p))),
+                Texels::Linear(px) => texels.extend(px.iter().flat_map(|p| p.map(f32::to_bits))),
+            }
+            offset
+        });
+        let [a, b, c, d, e, f] = t.transform;
+        infos.push(GpuTexture {
+            width: t.width,
+            height: t.height,
+            offset,
+            flags,
+            linear: [a, b, d, e],
+            offset_uv: [c, f],
+            _pad: [0; 2],
+        });
     }
     (infos, texels)
 }
 
-/// The texture coordinates of every triangle of `prims` (scene order), from the meshes they
-/// came from; zeros for triangles without any.
-pub fn triangle_uvs(scene: &Scene, prims: &Primitives<f32>) -> Vec<GpuTriangleUv> {
+/// What every triangle of `prims` (scene order) carries from the mesh it came from (texture
+/// coordinates, shading normals, colours); zeros and no flags for triangles without any.
+pub fn triangle_attrs(scene: &Scene, prims: &Primitives<f32>) -> Vec<GpuTriangleAttrs> {
     prims
         .triangles
         .iter()
         .map(|t| match &scene.objects[t.tag.object as usize].geometry {
-            Geometry::Mesh { uvs, .. } if !uvs.is_empty() => {
-                let [a, b, c] = uvs[t.tag.face as usize];
-                GpuTriangleUv { a, b, c }
+            Geometry::Mesh { attrs, .. } => {
+                let f = t.tag.face as usize;
+                let mut out = GpuTriangleAttrs::default();
+                if let Some(uv) = attrs.uvs.get(f) {
+                    out.uv = *uv;
+                }
+                if let Some(uv) = attrs.uvs1.get(f) {
+                    out.second_uv = *uv;
+                }
+                if let Some(n) = attrs.normals.get(f) {
+                    out.normal = n.map(encode_octahedral);
+                    out.flags |= ATTR_NORMALS;
+                }
+                if let Some(c) = attrs.colors.get(f) {
+                    out.color = c.map(encode_unorm8x4);
+                    out.flags |= ATTR_COLORS;
+                }
+                out
             }
-            _ => GpuTriangleUv::default(),
+            _ => GpuTriangleAttrs::default(),
         })
         .collect()
 }
@@ -93,22 +128,32 @@ fn wrap_index(i: i32, n: i32, mode: u32) -> i32 {
     }
 }
 
-/// Texel (x, y) of texture `t`, linear.
+/// Texel (x, y) of texture `t`: linear RGB and alpha (1 for radiance maps).
 #[inline]
-fn texel(texels: &[u32], t: &GpuTexture, x: i32, y: i32) -> V3<f32> {
+fn texel(texels: &[u32], t: &GpuTexture, x: i32, y: i32) -> [f32; 4] {
     let i = y as u32 * t.width + x as u32;
     if t.flags & TEXTURE_LINEAR_RGB != 0 {
         let k = (t.offset + 3 * i) as usize;
-        return V3::new(f32::from_bits(texels[k]), f32::from_bits(texels[k + 1]), f32::from_bits(texels[k + 2]));
+        return [f32::from_bits(texels[k]), f32::from_bits(texels[k + 1]), f32::from_bits(texels[k + 2]), 1.0];
     }
     let w = texels[(t.offset + i) as usize];
-    let code = |shift: u32| f32::from_bits(texels[((w >> shift) & 255) as usize]);
-    V3::new(code(0), code(8), code(16))
+    let byte = |shift: u32| (w >> shift) & 255;
+    let alpha = byte(24) as f32 / 255.0;
+    if t.flags & TEXTURE_DATA != 0 {
+        return [byte(0) as f32 / 255.0, byte(8) as f32 / 255.0, byte(16) as f32 / 255.0, alpha];
+    }
+    let code = |shift: u32| f32::from_bits(texels[byte(shift) as usize]);
+    [code(0), code(8), code(16), alpha]
 }
 
-/// Texture `t` at (u, v) (v = 0 is the image's top row): bilinear between the four nearest
-/// texel centres, or the nearest texel.
-pub fn sample(texels: &[u32], t: &GpuTexture, u: f32, v: f32) -> V3<f32> {
+fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
+    [0, 1, 2, 3].map(|k| a[k] * (1.0 - t) + b[k] * t)
+}
+
+/// Texture `t` at (u, v) (v = 0 is the image's top row; the use's transform is applied by the
+/// caller, [`super::surface`]): bilinear between the four nearest texel centres, or the
+/// nearest texel. RGB and alpha.
+pub fn sample_rgba(texels: &[u32], t: &GpuTexture, u: f32, v: f32) -> [f32; 4] {
     let (w, h) = (t.width as i32, t.height as i32);
     let (wu, wv) = ((t.flags >> TEXTURE_WRAP_U_SHIFT) & 3, (t.flags >> TEXTURE_WRAP_V_SHIFT) & 3);
     let s = wrap_coord(u, wu) * t.width as f32 - 0.5;
@@ -123,9 +168,15 @@ pub fn sample(texels: &[u32], t: &GpuTexture, u: f32, v: f32) -> V3<f32> {
     let (xa, ya) = (x0 as i32, y0 as i32);
     let (xa, xb) = (wrap_index(xa, w, wu), wrap_index(xa + 1, w, wu));
     let (ya, yb) = (wrap_index(ya, h, wv), wrap_index(ya + 1, h, wv));
-    let top = texel(texels, t, xa, ya) * (1.0 - fx) + texel(texels, t, xb, ya) * fx;
-    let bottom = texel(texels, t, xa, yb) * (1.0 - fx) + texel(texels, t, xb, yb) * fx;
-    top * (1.0 - fy) + bottom * fy
+    let top = lerp4(texel(texels, t, xa, ya), texel(texels, t, xb, ya), fx);
+    let bottom = lerp4(texel(texels, t, xa, yb), texel(texels, t, xb, yb), fx);
+    lerp4(top, bottom, fy)
+}
+
+/// [`sample_rgba`] without alpha.
+pub fn sample(texels: &[u32], t: &GpuTexture, u: f32, v: f32) -> V3<f32> {
+    let [r, g, b, _] = sample_rgba(texels, t, u, v);
+    V3::new(r, g, b)
 }
 
 /// Barycentric weights (of b and c) of point `p` in triangle (a, b, c), from the normal
@@ -144,47 +195,28 @@ pub fn barycentrics(a: V3<f32>, b: V3<f32>, c: V3<f32>, p: V3<f32>) -> (f32, f32
     ((d22 * dq1 - d12 * dq2) / den, (d11 * dq2 - d12 * dq1) / den)
 }
 
-/// Texture coordinates at barycentric weights (β, γ) of triangle `tri` (scene order).
-#[inline]
-pub fn uv_at(g: &FlatScene, tri: usize, beta: f32, gamma: f32) -> (f32, f32) {
-    let t = &g.triangle_uvs[tri];
-    let alpha = 1.0 - beta - gamma;
-    (t.a[0] * alpha + t.b[0] * beta + t.c[0] * gamma, t.a[1] * alpha + t.b[1] * beta + t.c[1] * gamma)
-}
-
-/// `texture` (1 + index; 0: none) at barycentric weights (β, γ) of triangle `tri`, else 1.
-#[inline]
-pub fn factor_at(g: &FlatScene, texture: u32, tri: usize, beta: f32, gamma: f32) -> V3<f32> {
-    if texture == 0 {
-        return V3::splat(1.0);
-    }
-    let (u, v) = uv_at(g, tri, beta, gamma);
-    sample(&g.texels, &g.textures[texture as usize - 1], u, v)
-}
-
-/// Material `m` as seen at the hit point `p` on primitive `prim`: its colour and radiance
-/// multiplied by its textures there (triangles only; other primitives have no texture
-/// coordinates).
-pub fn textured(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>) -> GpuMaterial {
-    if (m.color_texture == 0 && m.radiance_texture == 0) || prim.kind() != PrimKind::Triangle {
-        return *m;
-    }
-    let i = prim.index();
-    let t = &g.triangles[i];
-    let (beta, gamma) = barycentrics(V3::from_array(t.va), V3::from_array(t.vb), V3::from_array(t.vc), p);
-    let mut out = *m;
-    out.color = V3::from_array(m.color).mul_elem(factor_at(g, m.color_texture, i, beta, gamma)).to_array();
-    out.radiance = V3::from_array(m.radiance).mul_elem(factor_at(g, m.radiance_texture, i, beta, gamma)).to_array();
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn tex(w: u32, h: u32, px: Vec<[u8; 3]>, wrap: Wrap, nearest: bool) -> (Vec<GpuTexture>, Vec<u32>) {
-        let t = Texture { name: "t".into(), width: w, height: h, texels: Texels::Srgb8(px), wrap: [wrap; 2], nearest };
+        let px = px.into_iter().map(|[r, g, b]| [r, g, b, 255]).collect();
+        let t = Texture { wrap: [wrap; 2], nearest, ..Texture::new("t", w, h, Texels::Rgba8(px)) };
         pack(std::iter::once(&t))
+    }
+
+    /// Two uses of one image share its texels; a data use reads codes as code / 255, alpha is
+    /// linear in both.
+    #[test]
+    fn uses_of_one_image_share_texels_and_read_data_linearly() {
+        let colour = Texture { nearest: true, ..Texture::new("t", 1, 1, Texels::Rgba8(vec![[128, 64, 255, 51]])) };
+        let data = Texture { data: true, texcoord: 1, ..colour.clone() };
+        let (t, px) = pack([&colour, &data].into_iter());
+        assert_eq!(t[0].offset, t[1].offset);
+        assert_eq!(px.len(), SRGB_TABLE_WORDS as usize + 1);
+        assert_eq!(sample_rgba(&px, &t[0], 0.5, 0.5), [srgb_to_linear(128), srgb_to_linear(64), 1.0, 0.2]);
+        assert_eq!(sample_rgba(&px, &t[1], 0.5, 0.5), [128.0 / 255.0, 64.0 / 255.0, 1.0, 0.2]);
+        assert_ne!(t[1].flags & TEXTURE_UV1, 0);
     }
 
     #[test]

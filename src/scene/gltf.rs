@@ -19,8 +19,10 @@
 //! (the glTF path) through every part; split, that state would cross files at every step.
 
 use super::mesh::Transform;
-use super::texture::{ImageKind, Texture, Wrap};
-use super::{Camera, Environment, Geometry, ImageSize, Light, Material, MaterialKind, Object, RenderMode};
+use super::texture::{IDENTITY_UV, ImageKind, Texels, Texture, Wrap};
+use super::{
+    Camera, Environment, Geometry, ImageSize, Light, Material, MaterialKind, MeshAttributes, Object, RenderMode,
+};
 use super::{LoadOptions, RenderSettings, Scene, SceneError};
 use crate::geometry::Triangle;
 use crate::math::V3;
@@ -28,6 +30,7 @@ use glam::{DMat3, DMat4, DVec3};
 use gltf::accessor::{DataType, Dimensions};
 use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Largest `.gltf` (JSON) or `.glb` file read.
 pub const MAX_GLTF_FILE_BYTES: u64 = 2 << 30;
@@ -36,8 +39,15 @@ pub const MAX_BUFFER_BYTES: u64 = 2 << 30;
 /// Deepest node hierarchy followed.
 const MAX_NODE_DEPTH: usize = 1024;
 /// The extensions whose contents are read (the crate refuses files that require others).
-pub const SUPPORTED_EXTENSIONS: [&str; 4] =
-    ["KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior"];
+pub const SUPPORTED_EXTENSIONS: [&str; 7] = [
+    "KHR_mesh_quantization",
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_unlit",
+    "KHR_texture_transform",
+];
 /// A glTF file given on its own renders this tall (and as wide as its camera's aspect ratio
 /// asks, else 4:3).
 pub const DEFAULT_HEIGHT: u32 = 480;
@@ -66,8 +76,9 @@ pub struct PlacedCamera {
 #[derive(Clone, Debug, Default)]
 pub struct Import {
     pub triangles: Vec<Triangle<f64>>,
-    /// Per triangle; empty when no primitive has `TEXCOORD_0`.
-    pub uvs: Vec<[[f32; 2]; 3]>,
+    /// Per triangle: texture coordinates, normals, colours (each list empty when no
+    /// primitive has it).
+    pub attrs: MeshAttributes,
     /// Per triangle, an index into `materials`.
     pub triangle_materials: Vec<u32>,
     pub materials: Vec<Material>,
@@ -107,9 +118,11 @@ pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<Scene, SceneErro
     if placed.is_none() {
         warnings.push("the file has no perspective camera: a camera frames the model from the front".into());
     }
-    let lit = !imp.lights.is_empty() || imp.materials.iter().any(|m| m.kind == MaterialKind::Emissive);
+    // Emissive materials do not count: on most assets they are small details (lamps, screens)
+    // that glTF viewers show under their environment light too.
+    let lit = !imp.lights.is_empty();
     let environment = (!lit).then(|| {
-        warnings.push("the file has no lights: a constant white sky (radiance 1) lights it".into());
+        warnings.push("the file has no punctual lights: a constant white sky (radiance 1) lights it".into());
         Environment::constant([1.0; 3])
     });
     let render = RenderSettings {
@@ -128,7 +141,7 @@ pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<Scene, SceneErro
             geometry: Geometry::Mesh {
                 file: path.to_path_buf(),
                 triangles: imp.triangles,
-                uvs: imp.uvs,
+                attrs: imp.attrs,
                 materials: imp.triangle_materials,
             },
             material,
@@ -183,13 +196,20 @@ fn import_checked(path: &Path, placement: &Transform, triangle_limit: usize) -> 
         crate::input::ReadError::Io(e) => format!("cannot open: {e}"),
         e => format!("cannot read: {e}"),
     })?;
-    let gltf = parse(&bytes)?;
+    let (gltf, leniencies) = parse(&bytes)?;
     drop(bytes);
     validate(gltf.document.as_json())?;
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    let mut reader =
-        Reader { doc: &gltf.document, buffers: Vec::new(), dir, out: Import::default(), warned: BTreeSet::new() };
-    reader.buffers = load_buffers(&gltf.document, gltf.blob.as_deref(), &reader.dir)?;
+    let mut reader = Reader {
+        doc: &gltf.document,
+        buffers: Vec::new(),
+        images: HashMap::new(),
+        dir,
+        out: Import::default(),
+        warned: BTreeSet::new(),
+    };
+    reader.out.warnings.extend(leniencies);
+    reader.buffers = load_buffers(&gltf.document, gltf.blob.as_deref(), &reader.dir);
     reader.unsupported_extensions();
     reader.materials()?;
     reader.scene(placement, triangle_limit)?;
@@ -203,9 +223,23 @@ fn import_checked(path: &Path, placement: &Transform, triangle_limit: usize) -> 
 /// JSON, it is read again without `animations`, which strahl does not read and where the crate
 /// is stricter than the specification (a channel's `target.node` may be absent where an
 /// extension names the animated object).
-fn parse(bytes: &[u8]) -> Res<gltf::Gltf> {
+fn parse(bytes: &[u8]) -> Res<(gltf::Gltf, Vec<String>)> {
+    let mut notes = Vec::new();
+    // A GLB whose header gives a length shorter than the file: the rest is not the file's
+    // (the specification defines the length as the whole GLB's).
+    let mut bytes = bytes;
+    if bytes.len() >= 12 && bytes.starts_with(b"glTF") {
+        let length = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize;
+        if length < 12 {
+            return Err(format!("broken GLB container: its header gives a length of {length} bytes"));
+        }
+        if length < bytes.len() {
+            notes.push(format!("{} bytes after the GLB's length ({length}) are ignored", bytes.len() - length));
+            bytes = &bytes[..length];
+        }
+    }
     let refused = match gltf::Gltf::from_slice_without_validation(bytes) {
-        Ok(g) => return Ok(g),
+        Ok(g) => return Ok((g, notes)),
         Err(e @ gltf::Error::Deserialize(_)) => describe_error(e),
         Err(e) => return Err(describe_error(e)),
     };
@@ -216,14 +250,52 @@ fn parse(bytes: &[u8]) -> Res<gltf::Gltf> {
         (bytes.to_vec(), None)
     };
     let mut value: serde_json::Value = serde_json::from_slice(&json).map_err(|_| refused.clone())?;
-    match value.as_object_mut().and_then(|root| root.remove("animations")) {
-        Some(_) => {
-            let root: gltf::json::Root =
-                serde_json::from_value(value).map_err(|e| describe_error(gltf::Error::Deserialize(e)))?;
-            Ok(gltf::Gltf { document: gltf::Document::from_json_without_validation(root), blob })
-        }
-        None => Err(refused),
+    if !lenient(&mut value) {
+        return Err(refused);
     }
+    let root: gltf::json::Root =
+        serde_json::from_value(value).map_err(|e| describe_error(gltf::Error::Deserialize(e)))?;
+    Ok((gltf::Gltf { document: gltf::Document::from_json_without_validation(root), blob }, notes))
+}
+
+/// Rewrites in `value` (a glTF file's JSON) what the specification allows and the crate's
+/// reading refuses: animations (which strahl does not read; the crate requires a channel
+/// target's `node`, which the specification does not), a scene without `nodes`, integers
+/// written as floats (`1.0`, `1e0`; the specification allows them). Returns whether anything
+/// changed.
+fn lenient(value: &mut serde_json::Value) -> bool {
+    use serde_json::Value;
+    let mut changed = false;
+    if let Some(root) = value.as_object_mut() {
+        changed |= root.remove("animations").is_some();
+        if let Some(Value::Array(scenes)) = root.get_mut("scenes") {
+            for scene in scenes.iter_mut().filter_map(Value::as_object_mut) {
+                if !scene.contains_key("nodes") {
+                    scene.insert("nodes".into(), Value::Array(Vec::new()));
+                    changed = true;
+                }
+            }
+        }
+    }
+    fn integers(v: &mut Value, changed: &mut bool) {
+        match v {
+            Value::Number(n) if !n.is_i64() && !n.is_u64() => {
+                if let Some(f) = n.as_f64()
+                    && f.fract() == 0.0
+                    && f.abs() <= 9_007_199_254_740_992.0
+                {
+                    *v = Value::from(f as i64);
+                    *changed = true;
+                }
+            }
+            Value::Array(a) => a.iter_mut().for_each(|x| integers(x, changed)),
+            Value::Object(o) => o.values_mut().for_each(|x| integers(x, changed)),
+            _ => {}
+        }
+    }
+    // Every whole float: where the crate wants a float it reads an integer as one.
+    integers(value, &mut changed);
+    changed
 }
 
 /// The crate's validation (index ranges, required extensions...), after the one check it
@@ -246,13 +318,33 @@ fn validate(root: &gltf::json::Root) -> Res<()> {
     root.validate(root, gltf::json::Path::new, &mut |path, error| {
         let path = path();
         let p = path.as_str();
-        let allowed =
-            p.ends_with(".min") || p.ends_with(".max") || (p.starts_with("accessors[") && p.ends_with("].bufferView"));
-        if !(allowed && error == Error::Missing) {
+        let allowed_missing = p.ends_with(".min")
+            || p.ends_with(".max")
+            || (p.starts_with("accessors[") && p.ends_with("].bufferView"))
+            // A primitive without POSITION is skipped (the specification: clients should).
+            || (p.starts_with("meshes[") && p.ends_with(".attributes[\"POSITION\"]"));
+        // Enumerations the specification leaves open: an accessor type or a light type strahl
+        // does not know is an error only where it is used.
+        let allowed_invalid = (p.starts_with("accessors[") && p.ends_with("].type"))
+            || (p.contains("khrLightsPunctual.lights[") && p.ends_with("].type"));
+        let required_quantization = p.starts_with("extensionsRequired[")
+            && root.extensions_required.get(extension_index(p)).is_some_and(|e| e == "KHR_mesh_quantization");
+        let allowed = match error {
+            Error::Missing => allowed_missing,
+            Error::Invalid => allowed_invalid,
+            Error::Unsupported => required_quantization,
+            _ => false,
+        };
+        if !allowed {
             errors.push((path, error));
         }
     });
     if errors.is_empty() { Ok(()) } else { Err(describe_error(gltf::Error::Validation(errors))) }
+}
+
+/// N of a path `extensionsRequired[N]`.
+fn extension_index(path: &str) -> usize {
+    path.trim_start_matches("extensionsRequired[").trim_end_matches(']').parse().unwrap_or(usize::MAX)
 }
 
 /// The crate's error as a message naming the glTF path.
@@ -283,8 +375,9 @@ fn describe_error(e: gltf::Error) -> String {
 
 /// The bytes of every buffer: the GLB binary chunk, a `data:` URI, or a file next to the
 /// glTF file. A buffer without a uri and without a binary chunk to stand for it is valid while
-/// no view reads it: its entry is the error a view that does gets.
-fn load_buffers(doc: &gltf::Document, blob: Option<&[u8]>, dir: &Path) -> Res<Vec<Res<Vec<u8>>>> {
+/// no view reads it, and so is one whose uri strahl cannot read (a URL) or whose data are short:
+/// its entry is the error a view that does gets.
+fn load_buffers(doc: &gltf::Document, blob: Option<&[u8]>, dir: &Path) -> Vec<Res<Vec<u8>>> {
     let mut out = Vec::new();
     let mut blob_used = false;
     for b in doc.buffers() {
@@ -298,16 +391,21 @@ fn load_buffers(doc: &gltf::Document, blob: Option<&[u8]>, dir: &Path) -> Res<Ve
                 blob_used = true;
                 blob.to_vec()
             }
-            gltf::buffer::Source::Uri(uri) => {
-                read_uri(uri, dir, MAX_BUFFER_BYTES).map_err(|m| format!("{at}.uri: {m}"))?
-            }
+            gltf::buffer::Source::Uri(uri) => match read_uri(uri, dir, MAX_BUFFER_BYTES) {
+                Ok(data) => data,
+                Err(m) => {
+                    out.push(Err(format!("{at}.uri: {m}")));
+                    continue;
+                }
+            },
         };
         if data.len() < b.length() {
-            return Err(format!("{at}: byteLength is {} but its data holds {} bytes", b.length(), data.len()));
+            out.push(Err(format!("{at}: byteLength is {} but its data holds {} bytes", b.length(), data.len())));
+            continue;
         }
         out.push(Ok(data));
     }
-    Ok(out)
+    out
 }
 
 /// The bytes a relative file URI or a base64 `data:` URI names.
@@ -354,15 +452,69 @@ fn percent_decode(s: &str) -> String {
 struct PrimitiveData {
     positions: Vec<DVec3>,
     uvs: Option<Vec<[f32; 2]>>,
+    uvs1: Option<Vec<[f32; 2]>>,
+    normals: Option<Vec<DVec3>>,
+    colors: Option<Vec<[f32; 4]>>,
     /// Vertex indices of the triangles.
     triangles: Vec<[u32; 3]>,
     material: u32,
+}
+
+/// A material's reference to a texture: which, through which texture coordinates, and the
+/// `KHR_texture_transform` of them.
+struct TextureUse {
+    texture: usize,
+    texcoord: u32,
+    transform: [f32; 6],
+}
+
+/// What makes two uses the same: texture, coordinates, transform bits, data or colour.
+type TextureKey = (usize, u32, [u32; 6], bool);
+
+impl TextureUse {
+    fn of_info(info: gltf::texture::Info) -> TextureUse {
+        let mut u = TextureUse { texture: info.texture().index(), texcoord: info.tex_coord(), transform: IDENTITY_UV };
+        if let Some(t) = info.texture_transform() {
+            u.transform = uv_transform(t.offset(), t.rotation(), t.scale());
+            if let Some(c) = t.tex_coord() {
+                u.texcoord = c;
+            }
+        }
+        u
+    }
+
+    fn of_normal(n: &gltf::material::NormalTexture) -> TextureUse {
+        let mut u = TextureUse { texture: n.texture().index(), texcoord: n.tex_coord(), transform: IDENTITY_UV };
+        if let Some(t) = n.extension_value("KHR_texture_transform") {
+            let pair = |key: &str, default: [f32; 2]| {
+                t.get(key).and_then(|v| v.as_array()).map_or(default, |a| {
+                    [0, 1].map(|k| a.get(k).and_then(|x| x.as_f64()).map_or(default[k], |x| x as f32))
+                })
+            };
+            let rotation = t.get("rotation").and_then(|v| v.as_f64()).unwrap_or(0.0) as f32;
+            u.transform = uv_transform(pair("offset", [0.0; 2]), rotation, pair("scale", [1.0; 2]));
+            if let Some(c) = t.get("texCoord").and_then(|v| v.as_u64()) {
+                u.texcoord = c as u32;
+            }
+        }
+        u
+    }
+}
+
+/// `KHR_texture_transform`'s offset · rotation · scale as [a, b, c, d, e, f] of
+/// (a·u + b·v + c, d·u + e·v + f); the rotation turns the coordinates counter-clockwise as
+/// the extension's matrix does (u' = cos·u + sin·v, v' = −sin·u + cos·v, v running down).
+fn uv_transform(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> [f32; 6] {
+    let (s, c) = rotation.sin_cos();
+    [c * scale[0], s * scale[1], offset[0], -s * scale[0], c * scale[1], offset[1]]
 }
 
 struct Reader<'a> {
     doc: &'a gltf::Document,
     /// Each buffer's bytes, or why it has none (an error only where a view reads it).
     buffers: Vec<Res<Vec<u8>>>,
+    /// Each image decoded once, shared by its uses.
+    images: HashMap<usize, (u32, u32, Arc<Texels>)>,
     dir: PathBuf,
     out: Import,
     /// Warnings already given (each once).
@@ -470,6 +622,9 @@ impl Reader<'_> {
     /// type is one of `dims`; sparse substitutions applied.
     fn read_accessor(&self, acc: &gltf::Accessor, what: &str, dims: &[Dimensions]) -> Res<Vec<f64>> {
         let at = format!("{what} (accessors[{}])", acc.index());
+        if !matches!(self.doc.as_json().accessors[acc.index()].type_, gltf::json::validation::Checked::Valid(_)) {
+            return Err(format!("{at}: type is not one glTF defines"));
+        }
         if !dims.contains(&acc.dimensions()) {
             let want: Vec<&str> = dims.iter().map(|&d| type_name(d)).collect();
             return Err(format!("{at}: type {} where {} is expected", type_name(acc.dimensions()), want.join(" or ")));
@@ -530,7 +685,7 @@ impl Reader<'_> {
     /// Every material of the file, mapped onto strahl's kinds (see the README), with the
     /// textures they use; then the grey default for primitives without a material.
     fn materials(&mut self) -> Res<()> {
-        let mut textures: HashMap<usize, u32> = HashMap::new();
+        let mut textures: HashMap<TextureKey, u32> = HashMap::new();
         let docs: Vec<gltf::Material> = self.doc.materials().collect();
         for m in docs {
             let i = m.index().expect("listed materials have an index");
@@ -541,14 +696,12 @@ impl Reader<'_> {
             let strength = m.emissive_strength().unwrap_or(1.0) as f64;
             let radiance = m.emissive_factor().map(|c| (c as f64 * strength).max(0.0));
             let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
-            let kind = if radiance.iter().any(|&c| c > 0.0) {
+            let kind = if m.unlit() {
                 MaterialKind::Emissive
             } else if transmission >= 0.5 {
                 MaterialKind::Dielectric
-            } else if pbr.metallic_factor() >= 0.5 {
-                MaterialKind::Mirror
             } else {
-                MaterialKind::Diffuse
+                MaterialKind::Pbr
             };
             let mut ior = 1.0;
             if kind == MaterialKind::Dielectric {
@@ -558,53 +711,80 @@ impl Reader<'_> {
                     ior = 1.5;
                 }
             }
-            let roughness = if kind == MaterialKind::Mirror {
-                // glTF's roughness is perceptual: GGX α = roughness².
-                (pbr.roughness_factor() as f64).clamp(0.0, 1.0).powi(2)
-            } else {
-                0.0
-            };
-            let color_texture = match pbr.base_color_texture() {
-                Some(info) => {
-                    self.texture(&info, &format!("{at}.pbrMetallicRoughness.baseColorTexture"), &mut textures)?
+            let mut tex = |this: &mut Self, info: Option<TextureUse>, what: &str, data: bool| -> Res<Option<u32>> {
+                match info {
+                    Some(u) => this.texture(&u, &format!("{at}.{what}"), data, &mut textures),
+                    None => Ok(None),
                 }
-                None => None,
             };
-            let radiance_texture = match m.emissive_texture() {
-                Some(info) if kind == MaterialKind::Emissive => {
-                    self.texture(&info, &format!("{at}.emissiveTexture"), &mut textures)?
-                }
-                _ => None,
-            };
+            let color_texture = tex(
+                self,
+                pbr.base_color_texture().map(TextureUse::of_info),
+                "pbrMetallicRoughness.baseColorTexture",
+                false,
+            )?;
             let name = match m.name() {
                 Some(n) => format!("{at} \"{n}\""),
                 None => at.clone(),
             };
-            self.out.materials.push(Material {
-                name,
-                kind,
-                color,
-                ior,
-                radiance: if kind == MaterialKind::Emissive { radiance } else { [0.0; 3] },
-                roughness,
-                two_sided: m.double_sided(),
-                color_texture,
-                radiance_texture,
-            });
+            let mut out = Material { name, kind, color, ior, ..Material::default_grey() };
+            match kind {
+                MaterialKind::Emissive => {
+                    // KHR_materials_unlit: the base colour shown as it is, from both sides.
+                    out.color = [0.0; 3];
+                    out.radiance = color;
+                    out.radiance_texture = color_texture;
+                    out.two_sided = true;
+                    out.unlit = true;
+                }
+                MaterialKind::Dielectric => out.color_texture = color_texture,
+                _ => {
+                    out.color_texture = color_texture;
+                    out.metallic = (pbr.metallic_factor() as f64).clamp(0.0, 1.0);
+                    out.roughness = (pbr.roughness_factor() as f64).clamp(0.0, 1.0);
+                    out.radiance = radiance;
+                    out.two_sided = m.double_sided();
+                    if radiance.iter().any(|&c| c > 0.0) {
+                        out.radiance_texture =
+                            tex(self, m.emissive_texture().map(TextureUse::of_info), "emissiveTexture", false)?;
+                    }
+                    out.metal_rough_texture = tex(
+                        self,
+                        pbr.metallic_roughness_texture().map(TextureUse::of_info),
+                        "pbrMetallicRoughness.metallicRoughnessTexture",
+                        true,
+                    )?;
+                    if let Some(n) = m.normal_texture() {
+                        out.normal_scale = n.scale() as f64;
+                        out.normal_texture = tex(self, Some(TextureUse::of_normal(&n)), "normalTexture", true)?;
+                    }
+                }
+            }
+            self.out.materials.push(out);
         }
         self.out.materials.push(Material::default_grey());
         Ok(())
     }
 
-    /// The local index of the texture `info` refers to, decoded on first use; None (with a
-    /// warning) for a texture without `source`, which the specification allows where an
+    /// The local index of the texture use `u` (an image with its sampler, texture coordinates
+    /// and transform; `data`: read linearly), made on first use, its image decoded once; None
+    /// (with a warning) for a texture without `source`, which the specification allows where an
     /// extension strahl does not read gives the image.
-    fn texture(&mut self, info: &gltf::texture::Info, at: &str, cache: &mut HashMap<usize, u32>) -> Res<Option<u32>> {
-        if info.tex_coord() != 0 {
-            self.warn(format!("{at}: texCoord {} is not read; TEXCOORD_0 is used", info.tex_coord()));
+    fn texture(
+        &mut self,
+        u: &TextureUse,
+        at: &str,
+        data: bool,
+        cache: &mut HashMap<TextureKey, u32>,
+    ) -> Res<Option<u32>> {
+        let mut texcoord = u.texcoord;
+        if texcoord > 1 {
+            self.warn(format!("{at}: texCoord {texcoord} is not read (TEXCOORD_0 and _1 are): TEXCOORD_0 is used"));
+            texcoord = 0;
         }
-        let tex = info.texture();
-        if let Some(&k) = cache.get(&tex.index()) {
+        let tex = self.doc.textures().nth(u.texture).ok_or_else(|| format!("{at}.index: out of range"))?;
+        let key = (u.texture, texcoord, u.transform.map(f32::to_bits), data);
+        if let Some(&k) = cache.get(&key) {
             return Ok(Some(k));
         }
         let Some(image) = tex.source() else {
@@ -616,6 +796,39 @@ impl Reader<'_> {
             return Ok(None);
         };
         let image_index = image.index();
+        let (width, height, texels) = match self.images.get(&image_index) {
+            Some(found) => found.clone(),
+            None => {
+                let decoded = self.decode_image(image_index)?;
+                self.images.insert(image_index, decoded.clone());
+                decoded
+            }
+        };
+        let sampler = tex.sampler();
+        let wrap = |w: gltf::texture::WrappingMode| match w {
+            gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
+            gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
+            gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+        };
+        let t = Texture {
+            name: format!("images[{image_index}]"),
+            width,
+            height,
+            texels,
+            wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+            nearest: sampler.mag_filter() == Some(gltf::texture::MagFilter::Nearest),
+            data,
+            texcoord,
+            transform: u.transform,
+        };
+        let k = self.out.textures.len() as u32;
+        self.out.textures.push(t);
+        cache.insert(key, k);
+        Ok(Some(k))
+    }
+
+    /// Image `image_index` decoded: its size and texels.
+    fn decode_image(&mut self, image_index: usize) -> Res<(u32, u32, Arc<Texels>)> {
         let iat = format!("images[{image_index}]");
         let json = &self.doc.as_json().images[image_index];
         let bytes = match (&json.buffer_view, &json.uri) {
@@ -631,20 +844,8 @@ impl Reader<'_> {
                 .map_err(|m| format!("{iat}.uri: {m}"))?,
             (None, None) => return Err(format!("{iat}: neither uri nor bufferView")),
         };
-        let mut t = Texture::decode(&bytes, ImageKind::Color).map_err(|m| format!("{iat}: {m}"))?;
-        t.name = iat;
-        let sampler = tex.sampler();
-        let wrap = |w: gltf::texture::WrappingMode| match w {
-            gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
-            gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
-            gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
-        };
-        t.wrap = [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())];
-        t.nearest = sampler.mag_filter() == Some(gltf::texture::MagFilter::Nearest);
-        let k = self.out.textures.len() as u32;
-        self.out.textures.push(t);
-        cache.insert(tex.index(), k);
-        Ok(Some(k))
+        let t = Texture::decode(&bytes, ImageKind::Color).map_err(|m| format!("{iat}: {m}"))?;
+        Ok((t.width, t.height, t.texels))
     }
 
     /// Walks the default scene (else the first; else every root node) and places its meshes,
@@ -754,22 +955,57 @@ impl Reader<'_> {
                         mesh.index()
                     ));
                 }
-                let any_uvs = data.uvs.is_some() || !self.out.uvs.is_empty();
-                if any_uvs && self.out.uvs.len() < self.out.triangles.len() {
-                    // Earlier triangles had none: they read texel (0, 0).
-                    self.out.uvs.resize(self.out.triangles.len(), [[0.0; 2]; 3]);
+                // Normals by the inverse transpose of the node's (mirrored) matrix, then the
+                // placement's.
+                let normal_matrix = DMat3::from_mat4(m).inverse().transpose();
+                let normals: Option<Vec<[f32; 3]>> = data.normals.as_ref().map(|ns| {
+                    ns.iter()
+                        .map(|&n| {
+                            let q = normal_matrix * n;
+                            placement.apply_normal(V3::new(q.x, q.y, q.z)).cast::<f32>().to_array()
+                        })
+                        .collect()
+                });
+                let n = self.out.triangles.len();
+                let attrs = &mut self.out.attrs;
+                // A list that earlier triangles lacked starts with defaults for them: texel
+                // (0, 0), the face's normal (zero), white.
+                fn open<T: Copy>(list: &mut Vec<[T; 3]>, here: bool, n: usize, default: T) -> bool {
+                    if (here || !list.is_empty()) && list.len() < n {
+                        list.resize(n, [default; 3]);
+                    }
+                    here || !list.is_empty()
+                }
+                let with_uvs = open(&mut attrs.uvs, data.uvs.is_some(), n, [0.0; 2]);
+                let with_uvs1 = open(&mut attrs.uvs1, data.uvs1.is_some(), n, [0.0; 2]);
+                let with_normals = open(&mut attrs.normals, normals.is_some(), n, [0.0; 3]);
+                let with_colors = open(&mut attrs.colors, data.colors.is_some(), n, [1.0; 4]);
+                fn corners<T: Copy>(list: &Option<Vec<T>>, t: &[u32; 3], default: T, flip: bool) -> [T; 3] {
+                    let mut c = list.as_ref().map_or([default; 3], |l| t.map(|i| l[i as usize]));
+                    if flip {
+                        c.swap(1, 2);
+                    }
+                    c
                 }
                 for t in &data.triangles {
                     let mut v = t.map(|i| placed[i as usize]);
-                    let mut uv = data.uvs.as_ref().map_or([[0.0; 2]; 3], |uvs| t.map(|i| uvs[i as usize]));
                     if flip {
                         v.swap(1, 2);
-                        uv.swap(1, 2);
                     }
                     self.out.triangles.push(Triangle { v });
                     self.out.triangle_materials.push(data.material);
-                    if any_uvs {
-                        self.out.uvs.push(uv);
+                    let attrs = &mut self.out.attrs;
+                    if with_uvs {
+                        attrs.uvs.push(corners(&data.uvs, t, [0.0; 2], flip));
+                    }
+                    if with_uvs1 {
+                        attrs.uvs1.push(corners(&data.uvs1, t, [0.0; 2], flip));
+                    }
+                    if with_normals {
+                        attrs.normals.push(corners(&normals, t, [0.0; 3], flip));
+                    }
+                    if with_colors {
+                        attrs.colors.push(corners(&data.colors, t, [1.0; 4], flip));
                     }
                 }
             }
@@ -805,7 +1041,19 @@ impl Reader<'_> {
                 }
             }
         }
-        if let Some(light) = n.light() {
+        let known_type = |i: usize| {
+            let json = self.doc.as_json().extensions.as_ref().and_then(|e| e.khr_lights_punctual.as_ref());
+            json.and_then(|l| l.lights.get(i))
+                .is_some_and(|l| matches!(l.type_, gltf::json::validation::Checked::Valid(_)))
+        };
+        if let Some(light) = n.light()
+            && !known_type(light.index())
+        {
+            self.warn(format!(
+                "KHR_lights_punctual.lights[{}]: a light type glTF does not define: skipped",
+                light.index()
+            ));
+        } else if let Some(light) = n.light() {
             let c = light.color();
             let intensity = c.map(|c| (c as f64 * light.intensity() as f64).max(0.0));
             let at = format!("KHR_lights_punctual.lights[{}]", light.index());
@@ -849,20 +1097,38 @@ impl Reader<'_> {
         if p.morph_targets().len() > 0 {
             self.warn(format!("{named}: morph targets are not read: the base shape is drawn"));
         }
-        let pos_acc = p.get(&gltf::Semantic::Positions).ok_or_else(|| format!("{at}.attributes: no POSITION"))?;
+        let Some(pos_acc) = p.get(&gltf::Semantic::Positions) else {
+            self.warn(format!("{named}: no POSITION: skipped"));
+            return Ok(None);
+        };
         let pos = self.read_accessor(&pos_acc, &format!("{at}.attributes.POSITION"), &[Dimensions::Vec3])?;
         let positions: Vec<DVec3> = pos.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect();
         let nv = positions.len();
-        let uvs = match p.get(&gltf::Semantic::TexCoords(0)) {
-            Some(acc) => {
-                let uv = self.read_accessor(&acc, &format!("{at}.attributes.TEXCOORD_0"), &[Dimensions::Vec2])?;
-                if uv.len() / 2 != nv {
-                    return Err(format!("{at}.attributes.TEXCOORD_0: {} elements for {nv} vertices", uv.len() / 2));
-                }
-                Some(uv.chunks_exact(2).map(|c| [c[0] as f32, c[1] as f32]).collect())
+        let attribute = |this: &mut Self, semantic: gltf::Semantic, dims: &[Dimensions]| -> Res<Option<Vec<f64>>> {
+            let Some(acc) = p.get(&semantic) else { return Ok(None) };
+            let what = format!("{at}.attributes.{}", semantic.to_string());
+            let values = this.read_accessor(&acc, &what, dims)?;
+            let width = values.len().checked_div(nv).unwrap_or(0);
+            if acc.count() != nv {
+                return Err(format!("{what}: {} elements for {nv} vertices", acc.count()));
             }
-            None => None,
+            Ok(Some(if width == 3 && dims.contains(&Dimensions::Vec4) {
+                // RGB colours: opaque.
+                values.chunks_exact(3).flat_map(|c| [c[0], c[1], c[2], 1.0]).collect()
+            } else {
+                values
+            }))
         };
+        let pairs = |v: Vec<f64>| -> Vec<[f32; 2]> { v.chunks_exact(2).map(|c| [c[0] as f32, c[1] as f32]).collect() };
+        let uvs = attribute(self, gltf::Semantic::TexCoords(0), &[Dimensions::Vec2])?.map(pairs);
+        let uvs1 = attribute(self, gltf::Semantic::TexCoords(1), &[Dimensions::Vec2])?.map(pairs);
+        let normals = attribute(self, gltf::Semantic::Normals, &[Dimensions::Vec3])?
+            .map(|v| v.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect());
+        let colors = attribute(self, gltf::Semantic::Colors(0), &[Dimensions::Vec3, Dimensions::Vec4])?.map(|v| {
+            v.chunks_exact(4)
+                .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32, c[3] as f32].map(|x| x.clamp(0.0, 1.0)))
+                .collect()
+        });
         let indices: Vec<u32> = match p.indices() {
             Some(acc) => {
                 let what = format!("{at}.indices");
@@ -907,6 +1173,6 @@ impl Reader<'_> {
             Some(i) => i as u32,
             None => (self.out.materials.len() - 1) as u32,
         };
-        Ok(Some(PrimitiveData { positions, uvs, triangles, material }))
+        Ok(Some(PrimitiveData { positions, uvs, uvs1, normals, colors, triangles, material }))
     }
 }

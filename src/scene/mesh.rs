@@ -48,6 +48,15 @@ impl Transform {
         V3::new(x + tx, y + ty, z + tz)
     }
 
+    /// A normal carried by the transform: scaled by the inverse of the scale (the inverse
+    /// transpose of the linear part), rotated as points are, normalised. Zero stays zero.
+    pub fn apply_normal(&self, n: V3<f64>) -> V3<f64> {
+        let [sx, sy, sz] = self.scale;
+        let p = Transform { translate: [0.0; 3], scale: [1.0 / sx, 1.0 / sy, 1.0 / sz], ..*self }.apply(n);
+        let l = p.length();
+        if l > 0.0 && l.is_finite() { p / l } else { V3::zero() }
+    }
+
     /// Whether the transform mirrors space (an odd number of negative scale factors), which
     /// reverses the winding of every triangle.
     pub fn mirrors(&self) -> bool {
@@ -79,8 +88,8 @@ pub fn load_obj(path: &Path, transform: &Transform, limit: usize) -> Result<Vec<
     load_obj_with_uvs(path, transform, limit).map(|(t, _)| t)
 }
 
-/// Triangles and the texture coordinates of their vertices (empty when there are none).
-pub type TexturedTriangles = (Vec<Triangle<f64>>, Vec<[[f32; 2]; 3]>);
+/// Triangles and what the file gives at their vertices (texture coordinates, normals).
+pub type TexturedTriangles = (Vec<Triangle<f64>>, crate::scene::MeshAttributes);
 
 /// [`load_obj`] with the texture coordinates (`vt`) of each triangle's vertices, in the order
 /// of its vertices, flipped to strahl's convention (v = 0 is the top row of an image; OBJ's
@@ -131,10 +140,13 @@ pub fn load_obj_with_uvs(path: &Path, transform: &Transform, limit: usize) -> Re
     }
 
     let mirror = transform.mirrors();
-    // Texture coordinates only when every face has them.
+    // Texture coordinates and normals only when every face has them.
     let with_uvs = models.iter().all(|m| m.mesh.texcoord_indices.len() == m.mesh.indices.len());
+    let with_normals = models.iter().all(|m| m.mesh.normal_indices.len() == m.mesh.indices.len());
     let mut tris = Vec::with_capacity(count);
-    let mut uvs = Vec::with_capacity(if with_uvs { count } else { 0 });
+    let mut attrs = crate::scene::MeshAttributes::default();
+    attrs.uvs.reserve(if with_uvs { count } else { 0 });
+    attrs.normals.reserve(if with_normals { count } else { 0 });
     for m in &models {
         let pos = &m.mesh.positions;
         let nverts = pos.len() / 3;
@@ -172,17 +184,37 @@ pub fn load_obj_with_uvs(path: &Path, transform: &Transform, limit: usize) -> Re
                     uv[j] = [u, 1.0 - w];
                 }
             }
+            let mut ns = [[0.0f32; 3]; 3];
+            if with_normals {
+                let vn = &m.mesh.normals;
+                for (j, &ix) in m.mesh.normal_indices[3 * k..3 * k + 3].iter().enumerate() {
+                    let ix = ix as usize;
+                    if 3 * ix + 2 >= vn.len() {
+                        return Err(format!("face normal index {} out of range (1..={})", ix + 1, vn.len() / 3));
+                    }
+                    let n = V3::new(vn[3 * ix] as f64, vn[3 * ix + 1] as f64, vn[3 * ix + 2] as f64);
+                    if !n.is_finite() {
+                        return Err(format!("normal {} is not finite", ix + 1));
+                    }
+                    // A zero normal stays zero: shading falls back to the face's normal there.
+                    ns[j] = transform.apply_normal(n).cast::<f32>().to_array();
+                }
+            }
             if mirror {
                 v.swap(1, 2);
                 uv.swap(1, 2);
+                ns.swap(1, 2);
             }
             tris.push(Triangle { v });
             if with_uvs {
-                uvs.push(uv);
+                attrs.uvs.push(uv);
+            }
+            if with_normals {
+                attrs.normals.push(ns);
             }
         }
     }
-    Ok((tris, uvs))
+    Ok((tris, attrs))
 }
 
 /// The seed scene's bumpy torus, mirroring `torus_mesh()` of the Mitsuba anchor script:
@@ -311,6 +343,29 @@ mod tests {
         assert_eq!(load_obj(&path, &Transform::default(), MAX_MESH_TRIANGLES).unwrap().len(), 2);
     }
 
+    /// `vn` normals follow their vertices, carried by the placement's inverse transpose (a
+    /// scale stretches them the other way) and swapped with the vertices when it mirrors.
+    #[test]
+    fn normals_follow_their_vertices_and_the_inverse_transpose() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("vn.obj");
+        std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 1 0 1\nvn 0 1 0\nf 1//1 2//2 3//3\n").unwrap();
+        let (_, a) = load_obj_with_uvs(&path, &Transform::default(), MAX_MESH_TRIANGLES).unwrap();
+        let h = 0.5f32.sqrt();
+        assert_eq!(a.normals.len(), 1);
+        for (got, want) in a.normals[0].iter().zip([[0.0, 0.0, 1.0], [h, 0.0, h], [0.0, 1.0, 0.0]]) {
+            assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-6), "{got:?} vs {want:?}");
+        }
+        // Scaling x by 2 halves the normal's x before normalising; mirroring (x by -2) also
+        // swaps the last two vertices' normals with their vertices.
+        let t = Transform { scale: [-2.0, 1.0, 1.0], ..Default::default() };
+        let (_, a) = load_obj_with_uvs(&path, &t, MAX_MESH_TRIANGLES).unwrap();
+        let n = a.normals[0][2];
+        let l = (0.25f32 + 1.0).sqrt();
+        assert!((n[0] + 0.5 / l).abs() < 1e-6 && (n[2] - 1.0 / l).abs() < 1e-6, "{n:?}");
+        assert_eq!(a.normals[0][1], [0.0, 1.0, 0.0]);
+    }
+
     /// `vt` coordinates follow their vertices, flipped so v = 0 is an image's top row; a
     /// mirroring placement swaps them with the vertices.
     #[test]
@@ -318,15 +373,16 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("uv.obj");
         std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 0.25\nf 1/1 2/2 3/3\n").unwrap();
-        let (_, uvs) = load_obj_with_uvs(&path, &Transform::default(), MAX_MESH_TRIANGLES).unwrap();
+        let uvs = load_obj_with_uvs(&path, &Transform::default(), MAX_MESH_TRIANGLES).unwrap().1.uvs;
         assert_eq!(uvs, vec![[[0.0, 1.0], [1.0, 1.0], [0.0, 0.75]]]);
         let t = Transform { scale: [-1.0, 1.0, 1.0], ..Default::default() };
-        let (tris, uvs) = load_obj_with_uvs(&path, &t, MAX_MESH_TRIANGLES).unwrap();
+        let (tris, attrs) = load_obj_with_uvs(&path, &t, MAX_MESH_TRIANGLES).unwrap();
+        let uvs = attrs.uvs;
         assert_eq!(tris[0].v[1], V3::new(0.0, 1.0, 0.0));
         assert_eq!(uvs, vec![[[0.0, 1.0], [0.0, 0.75], [1.0, 1.0]]]);
         // Without vt on every face: none.
         std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
-        assert!(load_obj_with_uvs(&path, &Transform::default(), MAX_MESH_TRIANGLES).unwrap().1.is_empty());
+        assert!(load_obj_with_uvs(&path, &Transform::default(), MAX_MESH_TRIANGLES).unwrap().1.uvs.is_empty());
     }
 
     #[test]

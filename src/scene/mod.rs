@@ -92,16 +92,21 @@ pub enum MaterialKind {
     Mirror = 1,
     Dielectric = 2,
     Emissive = 3,
+    /// glTF's metallic-roughness material: a diffuse base under a GGX dielectric coat
+    /// (F0 0.04), blended by `metallic` with a GGX conductor of the base colour, plus any
+    /// emission ([`crate::render::bsdf`]).
+    Pbr = 4,
 }
 
 impl MaterialKind {
-    pub const ALL: [MaterialKind; 4] = [Self::Diffuse, Self::Mirror, Self::Dielectric, Self::Emissive];
+    pub const ALL: [MaterialKind; 5] = [Self::Diffuse, Self::Mirror, Self::Dielectric, Self::Emissive, Self::Pbr];
     pub fn name(self) -> &'static str {
         match self {
             Self::Diffuse => "diffuse",
             Self::Mirror => "mirror",
             Self::Dielectric => "dielectric",
             Self::Emissive => "emissive",
+            Self::Pbr => "pbr",
         }
     }
 }
@@ -115,18 +120,32 @@ pub struct Material {
     pub color: [f64; 3],
     /// Index of refraction (dielectric).
     pub ior: f64,
-    /// Emitted radiance (emissive).
+    /// Emitted radiance (emissive; added to the scattering of a pbr material).
     pub radiance: [f64; 3],
     /// GGX α of a mirror (0: perfectly smooth); path mode only, Whitted treats every mirror
-    /// as smooth.
+    /// as smooth. A pbr material's perceptual roughness (glTF's `roughnessFactor`: α is its
+    /// square).
     pub roughness: f64,
-    /// An emissive surface emits from both faces (else from its front face only).
+    /// pbr: metalness in [0, 1] (glTF's `metallicFactor`).
+    pub metallic: f64,
+    /// An emissive surface emits from both faces (else from its front face only); a pbr
+    /// surface is seen from both faces (glTF's `doubleSided`), else camera rays pass through
+    /// its back faces.
     pub two_sided: bool,
     /// Index into [`Scene::textures`] of an image that multiplies `color` where the surface
     /// has texture coordinates.
     pub color_texture: Option<u32>,
     /// Index into [`Scene::textures`] of an image that multiplies `radiance` (emissive).
     pub radiance_texture: Option<u32>,
+    /// pbr: glTF's `metallicRoughnessTexture` (linear; blue multiplies `metallic`, green
+    /// `roughness`).
+    pub metal_rough_texture: Option<u32>,
+    /// pbr: glTF's `normalTexture`, a tangent-space normal map, and its `scale`.
+    pub normal_texture: Option<u32>,
+    pub normal_scale: f64,
+    /// Shows `radiance` (glTF `KHR_materials_unlit`: its base colour) and lights nothing: not
+    /// an area light, no stand-in.
+    pub unlit: bool,
 }
 
 impl Material {
@@ -139,10 +158,23 @@ impl Material {
             ior: 1.0,
             radiance: [0.0; 3],
             roughness: 0.0,
+            metallic: 0.0,
             two_sided: false,
             color_texture: None,
             radiance_texture: None,
+            metal_rough_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
+            unlit: false,
         }
+    }
+
+    /// Whether the material emits light other surfaces receive (emissive kinds and pbr
+    /// materials with emission; not unlit ones).
+    pub fn is_light(&self) -> bool {
+        !self.unlit
+            && (self.kind == MaterialKind::Emissive
+                || (self.kind == MaterialKind::Pbr && self.radiance.iter().any(|&c| c > 0.0)))
     }
 }
 
@@ -194,13 +226,53 @@ pub enum Geometry {
     Mesh {
         file: PathBuf,
         triangles: Vec<Triangle<f64>>,
-        /// Texture coordinates of each triangle's vertices, in the order of its vertices;
-        /// empty when the file has none.
-        uvs: Vec<[[f32; 2]; 3]>,
+        /// What the file gives at each triangle's vertices besides positions.
+        attrs: MeshAttributes,
         /// Material of each triangle (indices into [`Scene::materials`]); empty when every
         /// triangle has the object's material (glTF files bring one per primitive).
         materials: Vec<u32>,
     },
+}
+
+/// Per-vertex data of a mesh's triangles, each list in triangle order and each triple in the
+/// order of the triangle's vertices; a list is empty when the file has none of it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MeshAttributes {
+    /// Texture coordinates (glTF `TEXCOORD_0`, OBJ `vt`), v = 0 an image's top row.
+    pub uvs: Vec<[[f32; 2]; 3]>,
+    /// A second set (glTF `TEXCOORD_1`).
+    pub uvs1: Vec<[[f32; 2]; 3]>,
+    /// Unit shading normals (glTF `NORMAL`, OBJ `vn`), on the side of the triangle's front face
+    /// where they agree with it.
+    pub normals: Vec<[[f32; 3]; 3]>,
+    /// Linear RGBA colours (glTF `COLOR_0`).
+    pub colors: Vec<[[f32; 4]; 3]>,
+}
+
+impl MeshAttributes {
+    /// Keeps triangle `i`'s attributes (in vertex order `order`) in `out`, for the lists
+    /// `self` has.
+    pub fn push_from(&self, out: &mut MeshAttributes, i: usize, order: [usize; 3]) {
+        fn pick<T: Copy>(v: &[[T; 3]], i: usize, o: [usize; 3]) -> [T; 3] {
+            [v[i][o[0]], v[i][o[1]], v[i][o[2]]]
+        }
+        if !self.uvs.is_empty() {
+            out.uvs.push(pick(&self.uvs, i, order));
+        }
+        if !self.uvs1.is_empty() {
+            out.uvs1.push(pick(&self.uvs1, i, order));
+        }
+        if !self.normals.is_empty() {
+            out.normals.push(pick(&self.normals, i, order));
+        }
+        if !self.colors.is_empty() {
+            out.colors.push(pick(&self.colors, i, order));
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.uvs.is_empty() && self.uvs1.is_empty() && self.normals.is_empty() && self.colors.is_empty()
+    }
 }
 
 impl Geometry {

@@ -54,7 +54,7 @@ fn mesh_scene(triangles: Vec<Triangle<f64>>, file: PathBuf, camera: Camera, imag
         render: RenderSettings::default(),
         materials: vec![Material::default_grey()],
         objects: vec![Object {
-            geometry: Geometry::Mesh { file, triangles, uvs: Vec::new(), materials: Vec::new() },
+            geometry: Geometry::Mesh { file, triangles, attrs: Default::default(), materials: Vec::new() },
             material: 0,
         }],
         lights: vec![Light::Directional { direction: dir.normalize(), intensity: [1.0; 3] }],

@@ -7,6 +7,7 @@
 
 use std::io::Cursor;
 use std::path::Path;
+use std::sync::Arc;
 
 /// Largest accepted image side, in pixels.
 pub const MAX_TEXTURE_SIDE: u32 = 16384;
@@ -30,25 +31,38 @@ pub enum Wrap {
 /// The pixels of an image, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Texels {
-    /// 8-bit sRGB codes (colour textures); read through the exact sRGB → linear table
-    /// [`srgb_to_linear`].
-    Srgb8(Vec<[u8; 3]>),
+    /// 8-bit RGBA codes (PNG, JPEG): colour codes sRGB-encoded, read through the exact
+    /// sRGB → linear table [`srgb_to_linear`], unless the texture holds data
+    /// ([`Texture::data`]: code / 255); alpha is linear.
+    Rgba8(Vec<[u8; 4]>),
     /// Linear RGB (radiance maps).
     Linear(Vec<[f32; 3]>),
 }
 
+/// One use of an image: its texels (shared between uses, packed once), the sampler, and how
+/// the material reads it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
     /// Where it came from, for messages: a file, or a glTF path such as `images[2]`.
     pub name: String,
     pub width: u32,
     pub height: u32,
-    pub texels: Texels,
+    pub texels: Arc<Texels>,
     /// Wrap modes along u and v.
     pub wrap: [Wrap; 2],
     /// Nearest-texel lookups (glTF `magFilter` NEAREST) instead of bilinear filtering.
     pub nearest: bool,
+    /// The codes are data (metalness, roughness, normals: code / 255), not sRGB colour.
+    pub data: bool,
+    /// Which texture coordinates it reads (0: `TEXCOORD_0`, 1: `TEXCOORD_1`).
+    pub texcoord: u32,
+    /// `KHR_texture_transform` as the affine map (u, v) → (a·u + b·v + c, d·u + e·v + f),
+    /// row by row: [a, b, c, d, e, f]; [`IDENTITY_UV`] without one.
+    pub transform: [f32; 6],
 }
+
+/// The identity texture-coordinate transform.
+pub const IDENTITY_UV: [f32; 6] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
 
 /// The sRGB transfer function's inverse (IEC 61966-2-1) for an 8-bit code, computed in f64
 /// and rounded once: both backends read these values from one table.
@@ -60,7 +74,7 @@ pub fn srgb_to_linear(code: u8) -> f32 {
 /// Which kind of image a file must hold.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ImageKind {
-    /// PNG or JPEG, 8-bit sRGB (16-bit PNGs are rounded to 8 bits; alpha is dropped).
+    /// PNG or JPEG, 8-bit RGBA (16-bit PNGs are rounded to 8 bits; opaque without alpha).
     Color,
     /// OpenEXR or Radiance HDR, linear RGB.
     Radiance,
@@ -70,8 +84,9 @@ impl Texture {
     /// The linear value of texel (x, y).
     pub fn texel(&self, x: u32, y: u32) -> [f32; 3] {
         let i = y as usize * self.width as usize + x as usize;
-        match &self.texels {
-            Texels::Srgb8(t) => t[i].map(srgb_to_linear),
+        match &*self.texels {
+            Texels::Rgba8(t) if self.data => [0, 1, 2].map(|c| t[i][c] as f32 / 255.0),
+            Texels::Rgba8(t) => [0, 1, 2].map(|c| srgb_to_linear(t[i][c])),
             Texels::Linear(t) => t[i],
         }
     }
@@ -116,9 +131,28 @@ impl Texture {
             name: self.name.clone(),
             width: w,
             height: h,
-            texels: Texels::Linear(out),
+            texels: Arc::new(Texels::Linear(out)),
             wrap: self.wrap,
             nearest: self.nearest,
+            data: self.data,
+            texcoord: self.texcoord,
+            transform: self.transform,
+        }
+    }
+
+    /// A texture of `texels` (`width` × `height`), repeating, bilinear, as colour, read
+    /// through `TEXCOORD_0` untransformed.
+    pub fn new(name: impl Into<String>, width: u32, height: u32, texels: Texels) -> Texture {
+        Texture {
+            name: name.into(),
+            width,
+            height,
+            texels: Arc::new(texels),
+            wrap: [Wrap::Repeat; 2],
+            nearest: false,
+            data: false,
+            texcoord: 0,
+            transform: IDENTITY_UV,
         }
     }
 
@@ -166,7 +200,7 @@ impl Texture {
         }
         let img = reader()?.decode().map_err(|e| format!("cannot decode the image: {e}"))?;
         let texels = match kind {
-            ImageKind::Color => Texels::Srgb8(img.to_rgb8().pixels().map(|p| p.0).collect()),
+            ImageKind::Color => Texels::Rgba8(img.to_rgba8().pixels().map(|p| p.0).collect()),
             ImageKind::Radiance => {
                 let rgb = img.to_rgb32f();
                 let mut out = Vec::with_capacity(w as usize * h as usize);
@@ -181,7 +215,7 @@ impl Texture {
                 Texels::Linear(out)
             }
         };
-        Ok(Texture { name: String::new(), width: w, height: h, texels, wrap: [Wrap::Repeat; 2], nearest: false })
+        Ok(Texture::new(String::new(), w, h, texels))
     }
 }
 
@@ -211,14 +245,21 @@ mod tests {
         let t = Texture::load(&png, ImageKind::Color).unwrap();
         assert_eq!((t.width, t.height), (3, 2));
         assert_eq!(
-            t.texels,
-            Texels::Srgb8(vec![[0, 0, 7], [100, 0, 7], [200, 0, 7], [0, 200, 7], [100, 200, 7], [200, 200, 7]])
+            *t.texels,
+            Texels::Rgba8(vec![
+                [0, 0, 7, 255],
+                [100, 0, 7, 255],
+                [200, 0, 7, 255],
+                [0, 200, 7, 255],
+                [100, 200, 7, 255],
+                [200, 200, 7, 255]
+            ])
         );
         assert!(Texture::load(&png, ImageKind::Radiance).unwrap_err().contains("OpenEXR"));
         let exr = dir.path().join("t.exr");
         image::Rgb32FImage::from_fn(2, 1, |x, _| image::Rgb([x as f32 * 3.5, 1.0, -1e-3])).save(&exr).unwrap();
         let t = Texture::load(&exr, ImageKind::Radiance).unwrap();
-        assert_eq!(t.texels, Texels::Linear(vec![[0.0, 1.0, 0.0], [3.5, 1.0, 0.0]]));
+        assert_eq!(*t.texels, Texels::Linear(vec![[0.0, 1.0, 0.0], [3.5, 1.0, 0.0]]));
         assert!(Texture::load(&exr, ImageKind::Color).unwrap_err().contains("PNG or JPEG"));
         std::fs::write(dir.path().join("junk.png"), b"not an image").unwrap();
         assert!(Texture::load(&dir.path().join("junk.png"), ImageKind::Color).is_err());
@@ -230,16 +271,10 @@ mod tests {
 
     #[test]
     fn halving_averages_blocks_and_keeps_odd_edges() {
-        let t = Texture {
-            name: "t".into(),
-            width: 3,
-            height: 2,
-            texels: Texels::Linear(vec![[1.0; 3], [3.0; 3], [5.0; 3], [1.0; 3], [3.0; 3], [7.0; 3]]),
-            wrap: [Wrap::Repeat; 2],
-            nearest: false,
-        };
+        let t =
+            Texture::new("t", 3, 2, Texels::Linear(vec![[1.0; 3], [3.0; 3], [5.0; 3], [1.0; 3], [3.0; 3], [7.0; 3]]));
         let h = t.halved();
         assert_eq!((h.width, h.height), (2, 1));
-        assert_eq!(h.texels, Texels::Linear(vec![[2.0; 3], [6.0; 3]]));
+        assert_eq!(*h.texels, Texels::Linear(vec![[2.0; 3], [6.0; 3]]));
     }
 }

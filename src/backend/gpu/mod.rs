@@ -546,7 +546,7 @@ impl SceneBuffers {
             split_array(SplitArray::LeafTriangles, &g.leaf_triangles),
             pod_array("texture table", &g.textures),
             pod_array("texels (every image of the scene: textures and environment map)", &g.texels),
-            pod_array("triangle texture coordinates", &g.triangle_uvs),
+            pod_array("triangle attributes", &g.triangle_attrs),
             pod_array("environment", &g.environment),
             pod_array("environment map distribution", &g.env_distribution),
         ];

@@ -24,6 +24,9 @@ pub const MODULES: &[(&str, &str)] = &[
     ("shaders/modules/spawn.wgsl", include_str!("../../../shaders/modules/spawn.wgsl")),
     ("shaders/modules/raygen.wgsl", include_str!("../../../shaders/modules/raygen.wgsl")),
     ("shaders/modules/texture.wgsl", include_str!("../../../shaders/modules/texture.wgsl")),
+    ("shaders/modules/surface.wgsl", include_str!("../../../shaders/modules/surface.wgsl")),
+    ("shaders/modules/microfacet.wgsl", include_str!("../../../shaders/modules/microfacet.wgsl")),
+    ("shaders/modules/pbr.wgsl", include_str!("../../../shaders/modules/pbr.wgsl")),
     ("shaders/modules/environment.wgsl", include_str!("../../../shaders/modules/environment.wgsl")),
     ("shaders/modules/shade.wgsl", include_str!("../../../shaders/modules/shade.wgsl")),
     ("shaders/modules/sampler.wgsl", include_str!("../../../shaders/modules/sampler.wgsl")),
@@ -82,14 +85,17 @@ impl FeatureKey {
     /// The device reads 64-bit words (`SHADER_INT64`): a flag of the device, not of the scene,
     /// which [`GpuContext::pipeline`](super::GpuContext::pipeline) adds.
     pub const LOAD64: u32 = 1 << 10;
-    /// Materials have image textures (texture coordinates, texels).
+    /// Triangles carry attributes (per-triangle texture coordinates, normals, colours: a
+    /// material has an image texture, or a mesh has normals or colours).
     pub const TEXTURES: u32 = 1 << 11;
     /// The scene has an `[environment]`.
     pub const ENVIRONMENT: u32 = 1 << 12;
     /// The environment is a map (implies ENVIRONMENT).
     pub const ENV_MAP: u32 = 1 << 13;
-    pub const FLAG_COUNT: u32 = 14;
-    pub const NAMES: [&'static str; 14] = [
+    /// glTF's metallic-roughness material.
+    pub const PBR: u32 = 1 << 14;
+    pub const FLAG_COUNT: u32 = 15;
+    pub const NAMES: [&'static str; 15] = [
         "SPHERES",
         "CYLINDERS",
         "TRIANGLES",
@@ -104,6 +110,7 @@ impl FeatureKey {
         "TEXTURES",
         "ENVIRONMENT",
         "ENV_MAP",
+        "PBR",
     ];
     /// Flags that describe the device rather than the scene.
     pub const DEVICE: u32 = Self::LOAD64;
@@ -115,7 +122,7 @@ impl FeatureKey {
         Self::SPHERES | Self::CYLINDERS | Self::TRIANGLES | Self::PLANES | Self::BVH | Self::DEVICE | Self::SPLIT;
     /// Flags of the textures and the environment, which only the shading programs (render,
     /// path) read.
-    pub const ASSETS: u32 = Self::TEXTURES | Self::ENVIRONMENT | Self::ENV_MAP;
+    pub const ASSETS: u32 = Self::TEXTURES | Self::ENVIRONMENT | Self::ENV_MAP | Self::PBR;
     /// Every scene feature: the one shader that renders any scene.
     pub const ALL: FeatureKey = FeatureKey(((1 << Self::FLAG_COUNT) - 1) & !Self::DEVICE);
 
@@ -148,8 +155,10 @@ impl FeatureKey {
         let has = |m: MaterialKind| scene.materials.iter().any(|x| x.kind == m);
         set(has(MaterialKind::Mirror), Self::MIRROR);
         set(has(MaterialKind::Dielectric), Self::DIELECTRIC);
-        set(has(MaterialKind::Emissive), Self::EMISSIVE);
-        set(scene.materials.iter().any(|m| m.color_texture.is_some() || m.radiance_texture.is_some()), Self::TEXTURES);
+        // pbr emission is added under EMISSIVE, which has the emitters' code.
+        set(has(MaterialKind::Emissive) || scene.materials.iter().any(|m| m.is_light()), Self::EMISSIVE);
+        set(has(MaterialKind::Pbr), Self::PBR);
+        set(crate::render::flatten::needs_attributes(scene), Self::TEXTURES);
         set(scene.environment.is_some(), Self::ENVIRONMENT);
         set(scene.environment.as_ref().is_some_and(|e| e.map.is_some()), Self::ENV_MAP);
         FeatureKey(k)
@@ -173,8 +182,9 @@ impl FeatureKey {
         let has = |m: MaterialKind| g.materials.iter().any(|x| x.kind == m as u32);
         set(has(MaterialKind::Mirror), Self::MIRROR);
         set(has(MaterialKind::Dielectric), Self::DIELECTRIC);
-        set(has(MaterialKind::Emissive), Self::EMISSIVE);
-        set(g.materials.iter().any(|m| m.color_texture != 0 || m.radiance_texture != 0), Self::TEXTURES);
+        set(has(MaterialKind::Emissive) || g.materials.iter().any(|m| m.is_light()), Self::EMISSIVE);
+        set(has(MaterialKind::Pbr), Self::PBR);
+        set(!g.triangle_attrs.is_empty(), Self::TEXTURES);
         set(!g.environment.is_empty(), Self::ENVIRONMENT);
         set(g.environment.iter().any(|e| e.flags & ENV_MAP != 0), Self::ENV_MAP);
         FeatureKey(k)
@@ -348,6 +358,8 @@ mod tests {
             | FeatureKey::DIELECTRIC;
         let skip = !met & ((1 << base) - 1);
         for assets in [
+            FeatureKey::PBR,
+            FeatureKey::PBR | FeatureKey::TEXTURES,
             FeatureKey::TEXTURES,
             FeatureKey::ENVIRONMENT,
             FeatureKey::ENVIRONMENT | FeatureKey::ENV_MAP,
@@ -496,6 +508,13 @@ mod tests {
                 ),
             ),
             (
+                "pbr.toml",
+                format!(
+                    "{head}[[materials]]\nname = \"m\"\ntype = \"pbr\"\nmetallic = 0.5\nroughness = 0.4\n\
+                     radiance = [0.5, 0.5, 0.5]\n{sphere}{light}"
+                ),
+            ),
+            (
                 "emitters_only.toml",
                 format!(
                     "{head}[[materials]]\nname = \"m\"\ntype = \"emissive\"\nradiance = [4.0, 4.0, 4.0]\n{sphere}{}",
@@ -574,7 +593,7 @@ mod tests {
             "nodes",
             "texture_sample",
             "texels",
-            "triangle_uvs",
+            "triangle_attrs",
             "env_background",
             "env_distribution",
             "Environment",
@@ -630,10 +649,20 @@ mod tests {
                         continue;
                     };
                     let Some(&want) = shared.get(name) else { continue };
-                    let got = match m.global_expressions[c.init] {
+                    let literal = |e: &naga::Expression| match *e {
                         naga::Expression::Literal(naga::Literal::U32(v)) => Shared::U32(v),
                         naga::Expression::Literal(naga::Literal::F32(v)) => Shared::F32(v),
                         ref e => panic!("{name}: not a literal: {e:?}"),
+                    };
+                    let got = match (&m.global_expressions[c.init], want) {
+                        (naga::Expression::Compose { components, .. }, Shared::F32s(values)) => {
+                            let found: Vec<Shared> =
+                                components.iter().map(|&h| literal(&m.global_expressions[h])).collect();
+                            let wanted: Vec<Shared> = values.iter().map(|&v| Shared::F32(v)).collect();
+                            assert_eq!(found, wanted, "the table {name} in the {p:?} shader");
+                            want
+                        }
+                        (e, _) => literal(e),
                     };
                     assert_eq!(got, want, "{name} in the {p:?} shader");
                     seen.insert(name.to_string());
@@ -652,7 +681,10 @@ mod tests {
             _ => None,
         });
         assert_eq!(stack_len.map(Shared::U32), shared.get("GPU_STACK").copied(), "the traversal stack's length");
-        let folded = |n: &str| n.ends_with("WORKGROUP") || n == "GPU_STACK";
+        // The table's length is its array's (checked with its values above); its row count
+        // folds into the constant expressions that use it.
+        let folded =
+            |n: &str| n.ends_with("WORKGROUP") || ["GPU_STACK", "GGX_ALBEDO_LEN", "GGX_ROUGHNESS_STEPS"].contains(&n);
         let missing: Vec<_> = shared.keys().filter(|n| !seen.contains(**n) && !folded(n)).collect();
         assert!(missing.is_empty(), "not found as constants: {missing:?}");
     }
@@ -707,10 +739,23 @@ mod tests {
             layout!(
                 "Material",
                 GpuMaterial,
-                [color, kind, radiance, ior, roughness, flags, color_texture, radiance_texture]
+                [
+                    color,
+                    kind,
+                    radiance,
+                    ior,
+                    roughness,
+                    flags,
+                    color_texture,
+                    radiance_texture,
+                    metallic,
+                    metal_rough_texture,
+                    normal_texture,
+                    normal_scale
+                ]
             ),
-            layout!("TextureInfo", GpuTexture, [width, height, offset, flags]),
-            layout!("TriangleUv", GpuTriangleUv, [a, b, c]),
+            layout!("TextureInfo", GpuTexture, [width, height, offset, flags, linear, offset_uv, _pad]),
+            layout!("TriangleAttrs", GpuTriangleAttrs, [uv, second_uv, normal, color, flags, _pad]),
             layout!(
                 "Environment",
                 GpuEnvironment,
@@ -775,7 +820,7 @@ mod tests {
             "QueryRay" => "GpuQueryRay",
             "QueryHit" => "GpuQueryHit",
             "TextureInfo" => "GpuTexture",
-            "TriangleUv" => "GpuTriangleUv",
+            "TriangleAttrs" => "GpuTriangleAttrs",
             "Environment" => "GpuEnvironment",
             _ => panic!("no Rust twin named for WGSL struct {name}"),
         }

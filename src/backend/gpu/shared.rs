@@ -10,6 +10,8 @@ use crate::math::Real;
 pub enum Shared {
     U32(u32),
     F32(f32),
+    /// A table: the comma-separated literals of its values (for an `array<f32, N>(...)`).
+    F32s(&'static [f32]),
 }
 
 impl Shared {
@@ -19,6 +21,7 @@ impl Shared {
         match self {
             Shared::U32(v) => format!("{v}u"),
             Shared::F32(v) => hex_float(v),
+            Shared::F32s(v) => v.iter().map(|&x| hex_float(x)).collect::<Vec<_>>().join(", "),
         }
     }
 }
@@ -43,10 +46,10 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
     use crate::geometry::Part;
     use crate::gpu_types as g;
     use crate::primitives::{PrimKind, PrimRef};
-    use crate::render::{bsdf, path, sampler, shade, spawn};
+    use crate::render::{bsdf, microfacet, path, pbr, sampler, shade, spawn};
     use crate::scene::MaterialKind;
     use crate::scene::texture::Wrap;
-    use Shared::{F32, U32};
+    use Shared::{F32, F32s, U32};
     vec![
         // Primitive references (primitives::PrimRef) and the parts of a surface.
         ("KIND_SPHERE", U32(PrimKind::Sphere as u32)),
@@ -62,7 +65,9 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("MAT_MIRROR", U32(MaterialKind::Mirror as u32)),
         ("MAT_DIELECTRIC", U32(MaterialKind::Dielectric as u32)),
         ("MAT_EMISSIVE", U32(MaterialKind::Emissive as u32)),
+        ("MAT_PBR", U32(MaterialKind::Pbr as u32)),
         ("MATERIAL_TWO_SIDED", U32(g::MATERIAL_TWO_SIDED)),
+        ("MATERIAL_UNLIT", U32(g::MATERIAL_UNLIT)),
         ("LIGHT_POINT", U32(g::LIGHT_POINT)),
         ("LIGHT_STAND_IN", U32(g::LIGHT_STAND_IN)),
         ("FRAME_ACCUMULATE", U32(g::FRAME_ACCUMULATE)),
@@ -79,6 +84,10 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("TEXTURE_WRAP_V_SHIFT", U32(g::TEXTURE_WRAP_V_SHIFT)),
         ("TEXTURE_NEAREST", U32(g::TEXTURE_NEAREST)),
         ("TEXTURE_LINEAR_RGB", U32(g::TEXTURE_LINEAR_RGB)),
+        ("TEXTURE_DATA", U32(g::TEXTURE_DATA)),
+        ("TEXTURE_UV1", U32(g::TEXTURE_UV1)),
+        ("ATTR_NORMALS", U32(g::ATTR_NORMALS)),
+        ("ATTR_COLORS", U32(g::ATTR_COLORS)),
         ("WRAP_REPEAT", U32(Wrap::Repeat as u32)),
         ("WRAP_CLAMP", U32(Wrap::Clamp as u32)),
         ("WRAP_MIRROR", U32(Wrap::Mirror as u32)),
@@ -98,6 +107,12 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("SHADOW_PASSES", U32(shade::SHADOW_PASSES)),
         ("SHADOW_REACH", F32(path::SHADOW_REACH)),
         ("MIN_ROUGHNESS", F32(bsdf::MIN_ROUGHNESS)),
+        ("MIN_PBR_ALPHA", F32(pbr::MIN_PBR_ALPHA)),
+        ("PBR_F0", F32(pbr::PBR_F0)),
+        ("GGX_ROUGHNESS_STEPS", U32(microfacet::ROUGHNESS_STEPS as u32)),
+        ("GGX_COS_STEPS", U32(microfacet::COS_STEPS as u32)),
+        ("GGX_ALBEDO", F32s(microfacet::table())),
+        ("GGX_ALBEDO_LEN", U32(microfacet::table().len() as u32)),
         ("MIN_ULP", F32(spawn::MIN_ULP)),
         ("PCG_MULT", U32(sampler::PCG_MULT)),
         ("PCG_INC", U32(sampler::PCG_INC)),

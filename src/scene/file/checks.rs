@@ -185,7 +185,9 @@ impl Cx<'_> {
                 continue;
             }
             match &o.geometry {
-                Geometry::Mesh { uvs, materials: per_triangle, .. } if uvs.is_empty() && per_triangle.is_empty() => {
+                Geometry::Mesh { attrs, materials: per_triangle, .. }
+                    if attrs.uvs.is_empty() && per_triangle.is_empty() =>
+                {
                     warnings.push(format!(
                         "{}: objects[{i}]: material \"{}\" has a texture but the mesh has no texture coordinates (vt): \
                          it reads the texel at (0, 0)",
@@ -330,8 +332,10 @@ impl Cx<'_> {
         let stem = path.file_name().map_or_else(|| path.display().to_string(), |f| f.to_string_lossy().into_owned());
         for mut m in imp.materials {
             m.name = format!("{stem}: {}", m.name);
-            m.color_texture = m.color_texture.map(|k| k + t0);
-            m.radiance_texture = m.radiance_texture.map(|k| k + t0);
+            for t in [&mut m.color_texture, &mut m.radiance_texture, &mut m.metal_rough_texture, &mut m.normal_texture]
+            {
+                *t = t.map(|k| k + t0);
+            }
             loaded.materials.push(m);
         }
         loaded.textures.extend(imp.textures);
@@ -341,7 +345,7 @@ impl Cx<'_> {
             .extend(imp.warnings.into_iter().map(|w| format!("{}: {field}: {stem}: {w}", self.path.display())));
         let materials: Vec<u32> = imp.triangle_materials.iter().map(|&m| m + m0).collect();
         let material = materials.first().copied().unwrap_or(m0);
-        Ok((Geometry::Mesh { file: path, triangles: imp.triangles, uvs: imp.uvs, materials }, material))
+        Ok((Geometry::Mesh { file: path, triangles: imp.triangles, attrs: imp.attrs, materials }, material))
     }
 
     /// A mesh's or glTF object's `translate`, `rotate`, `scale`.
@@ -473,16 +477,18 @@ impl Cx<'_> {
         let not_a_field = |key: &str, span: Range<usize>| {
             self.at(span, format!("{field}.{key}"), format!("not a field of a {tname} material"))
         };
-        // Keys only one kind of material takes, in the order they are checked.
-        let own_keys = [
-            (MaterialKind::Dielectric, "ior", d.ior.as_ref().map(|v| v.span())),
-            (MaterialKind::Emissive, "radiance", d.radiance.as_ref().map(|v| v.span())),
-            (MaterialKind::Emissive, "two_sided", d.two_sided.as_ref().map(|v| v.span())),
-            (MaterialKind::Mirror, "roughness", d.roughness.as_ref().map(|v| v.span())),
-            (MaterialKind::Emissive, "radiance_texture", d.radiance_texture.as_ref().map(|v| v.span())),
+        // Keys only some kinds of material take, in the order they are checked.
+        use MaterialKind::{Dielectric, Emissive, Mirror, Pbr};
+        let own_keys: [(&[MaterialKind], &str, _); 6] = [
+            (&[Dielectric], "ior", d.ior.as_ref().map(|v| v.span())),
+            (&[Emissive, Pbr], "radiance", d.radiance.as_ref().map(|v| v.span())),
+            (&[Emissive, Pbr], "two_sided", d.two_sided.as_ref().map(|v| v.span())),
+            (&[Mirror, Pbr], "roughness", d.roughness.as_ref().map(|v| v.span())),
+            (&[Pbr], "metallic", d.metallic.as_ref().map(|v| v.span())),
+            (&[Emissive, Pbr], "radiance_texture", d.radiance_texture.as_ref().map(|v| v.span())),
         ];
-        for (owner, key, span) in own_keys {
-            if kind != owner
+        for (owners, key, span) in own_keys {
+            if !owners.contains(&kind)
                 && let Some(span) = span
             {
                 return Err(not_a_field(key, span));
@@ -523,6 +529,11 @@ impl Cx<'_> {
             }
         }
         let mut radiance = [0.0; 3];
+        if kind == MaterialKind::Pbr
+            && let Some(r) = &d.radiance
+        {
+            radiance = self.rgb(r, &format!("{field}.radiance"), None)?;
+        }
         if kind == MaterialKind::Emissive {
             let Some(r) = &d.radiance else {
                 return Err(self.at(
@@ -540,7 +551,24 @@ impl Cx<'_> {
                 return Err(self.at(
                     v.span(),
                     format!("{field}.roughness"),
-                    format!("must be in [0, 1] (GGX alpha), got {roughness}"),
+                    if kind == MaterialKind::Pbr {
+                        format!("must be in [0, 1] (perceptual: GGX alpha is its square), got {roughness}")
+                    } else {
+                        format!("must be in [0, 1] (GGX alpha), got {roughness}")
+                    },
+                ));
+            }
+        } else if kind == MaterialKind::Pbr {
+            roughness = 0.5;
+        }
+        let mut metallic = 0.0;
+        if let Some(v) = &d.metallic {
+            metallic = self.number(v, &format!("{field}.metallic"))?;
+            if !(0.0..=1.0).contains(&metallic) {
+                return Err(self.at(
+                    v.span(),
+                    format!("{field}.metallic"),
+                    format!("must be in [0, 1], got {metallic}"),
                 ));
             }
         }
@@ -552,9 +580,11 @@ impl Cx<'_> {
             ior,
             radiance,
             roughness,
+            metallic,
             two_sided,
             color_texture,
             radiance_texture,
+            ..Material::default_grey()
         })
     }
 
@@ -718,7 +748,7 @@ impl Cx<'_> {
                 }
                 let t = self.placement(d, field)?;
                 let mesh_path = self.base_dir.join(file.get_ref());
-                let (triangles, uvs) =
+                let (triangles, attrs) =
                     mesh::load_obj_with_uvs(&mesh_path, &t, triangle_budget).map_err(|mut message| {
                         if triangle_budget < mesh::MAX_MESH_TRIANGLES {
                             message += &format!(" (a scene holds at most {MAX_SCENE_TRIANGLES} triangles in all)");
@@ -733,7 +763,7 @@ impl Cx<'_> {
                             message,
                         }
                     })?;
-                Ok(Geometry::Mesh { file: mesh_path, triangles, uvs, materials: Vec::new() })
+                Ok(Geometry::Mesh { file: mesh_path, triangles, attrs, materials: Vec::new() })
             }
             _ => unreachable!("object types are checked above"),
         }

@@ -67,6 +67,7 @@ pub(super) struct MaterialDef {
     pub(super) ior: Option<Spanned<f64>>,
     pub(super) radiance: Option<SVec>,
     pub(super) roughness: Option<Spanned<f64>>,
+    pub(super) metallic: Option<Spanned<f64>>,
     pub(super) two_sided: Option<Spanned<bool>>,
     pub(super) texture: Option<Spanned<String>>,
     pub(super) radiance_texture: Option<Spanned<String>>,

@@ -90,10 +90,10 @@ pub fn scaled(scene: &Scene, s: f64) -> Scene {
                 vertices: vertices.iter().map(|&v| v * s).collect(),
                 triangles: triangles.iter().map(tri).collect(),
             },
-            Geometry::Mesh { file, triangles, uvs, materials } => Geometry::Mesh {
+            Geometry::Mesh { file, triangles, attrs, materials } => Geometry::Mesh {
                 file: file.clone(),
                 triangles: triangles.iter().map(tri).collect(),
-                uvs: uvs.clone(),
+                attrs: attrs.clone(),
                 materials: materials.clone(),
             },
         };
