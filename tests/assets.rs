@@ -565,6 +565,60 @@ fn gltf_files_the_specification_allows_load() {
     std::fs::write(&path, read).unwrap();
     let e = Scene::load(&path).unwrap_err().to_string();
     assert!(e.contains("bufferViews[2]: buffers[1]: has no uri"), "{e}");
+    // So is one whose URI strahl does not read (a URL).
+    let url = good.replace(
+        "}],\n  \"bufferViews\"",
+        "}, {\"uri\": \"http://example.invalid/b.bin\", \"byteLength\": 16}],\n  \"bufferViews\"",
+    );
+    assert!(!load(url).objects.is_empty());
+    // Integers written as floats (the specification allows `1.0`), a scene without `nodes`
+    // beside the one used, a required KHR_mesh_quantization (strahl reads integer attributes
+    // anyway), a light type glTF does not define (skipped, with a warning), and a primitive
+    // without POSITION (skipped, with a warning).
+    let floats = good.replace(
+        r#""bufferView": 2, "componentType": 5123, "count": 6"#,
+        r#""bufferView": 2.0, "componentType": 5123.0, "count": 6e0"#,
+    );
+    assert_ne!(floats, good, "the index accessor moved: update this test");
+    assert_eq!(load(floats).triangle_count(), 2);
+    let scenes = good
+        .replace(r#""scenes": [{"nodes""#, r#""scenes": [{"name": "empty"}, {"nodes""#)
+        .replace(r#""scene": 0"#, r#""scene": 1"#);
+    assert_ne!(scenes, good);
+    assert_eq!(load(scenes).triangle_count(), 2);
+    let quantized = good.replace(
+        r#""asset""#,
+        r#""extensionsUsed": ["KHR_mesh_quantization"], "extensionsRequired": ["KHR_mesh_quantization"], "asset""#,
+    );
+    assert_eq!(load(quantized).triangle_count(), 2);
+    let spherical = good.replace(r#""type": "directional""#, r#""type": "spherical""#);
+    assert_ne!(spherical, good);
+    let s = load(spherical);
+    assert!(s.lights.is_empty() && s.warnings.iter().any(|w| w.contains("light type")), "{:?}", s.warnings);
+    let headless = good.replace(
+        r#""primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]"#,
+        r#""primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}, {"attributes": {"TEXCOORD_0": 1}}]"#,
+    );
+    assert_ne!(headless, good);
+    let s = load(headless);
+    assert!(s.triangle_count() == 2 && s.warnings.iter().any(|w| w.contains("no POSITION")), "{:?}", s.warnings);
+}
+
+/// A GLB followed by bytes its header's length does not cover loads, with a warning; a length
+/// shorter than the header is an error.
+#[test]
+fn glb_files_with_trailing_bytes_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut bytes = std::fs::read(Quad { camera: true, light: true }.write_glb(dir.path())).unwrap();
+    bytes.extend([0u8; 5]);
+    let path = dir.path().join("trailing.glb");
+    std::fs::write(&path, &bytes).unwrap();
+    let s = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert!(s.warnings.iter().any(|w| w.contains("5 bytes after the GLB")), "{:?}", s.warnings);
+    bytes[8..12].copy_from_slice(&4u32.to_le_bytes());
+    std::fs::write(&path, &bytes).unwrap();
+    let e = Scene::load(&path).unwrap_err().to_string();
+    assert!(e.contains("length of 4 bytes"), "{e}");
 }
 
 /// Every prefix of a valid `.glb` and every byte of it replaced by a few others: an error or a

@@ -214,7 +214,13 @@ fn import_checked(path: &Path, placement: &Transform, triangle_limit: usize) -> 
     reader.materials()?;
     reader.scene(placement, triangle_limit)?;
     if reader.out.triangles.is_empty() {
-        return Err("the scene has no triangles (no mesh with TRIANGLES, TRIANGLE_STRIP or TRIANGLE_FAN)".into());
+        let meshes = gltf.document.meshes().len();
+        let placed = gltf.document.nodes().any(|n| n.mesh().is_some());
+        return Err(if meshes > 0 && !placed {
+            format!("the scene has no triangles: no node places any of the file's {meshes} meshes")
+        } else {
+            "the scene has no triangles (no mesh with TRIANGLES, TRIANGLE_STRIP or TRIANGLE_FAN)".into()
+        });
     }
     Ok(reader.out)
 }
@@ -327,8 +333,8 @@ fn validate(root: &gltf::json::Root) -> Res<()> {
         // does not know is an error only where it is used.
         let allowed_invalid = (p.starts_with("accessors[") && p.ends_with("].type"))
             || (p.contains("khrLightsPunctual.lights[") && p.ends_with("].type"));
-        let required_quantization = p.starts_with("extensionsRequired[")
-            && root.extensions_required.get(extension_index(p)).is_some_and(|e| e == "KHR_mesh_quantization");
+        // The crate's path reads `extensionsRequired[N] = "NAME"`.
+        let required_quantization = p.starts_with("extensionsRequired[") && p.ends_with("= \"KHR_mesh_quantization\"");
         let allowed = match error {
             Error::Missing => allowed_missing,
             Error::Invalid => allowed_invalid,
@@ -340,11 +346,6 @@ fn validate(root: &gltf::json::Root) -> Res<()> {
         }
     });
     if errors.is_empty() { Ok(()) } else { Err(describe_error(gltf::Error::Validation(errors))) }
-}
-
-/// N of a path `extensionsRequired[N]`.
-fn extension_index(path: &str) -> usize {
-    path.trim_start_matches("extensionsRequired[").trim_end_matches(']').parse().unwrap_or(usize::MAX)
 }
 
 /// The crate's error as a message naming the glTF path.
