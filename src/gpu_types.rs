@@ -81,6 +81,11 @@ pub struct GpuMaterial {
     pub normal_texture: u32,
     /// pbr: the normal map's scale (glTF `normalTexture.scale`).
     pub normal_scale: f32,
+    /// Alpha factor (base colour alpha), which textures and vertex colours multiply.
+    pub alpha: f32,
+    /// [`MATERIAL_ALPHA_MASK`]: alpha below this lets rays through.
+    pub alpha_cutoff: f32,
+    pub _pad: [u32; 2],
 }
 
 impl GpuMaterial {
@@ -109,6 +114,12 @@ impl GpuMaterial {
 pub const MATERIAL_TWO_SIDED: u32 = 1;
 /// Material flag: shows its radiance and lights nothing (`KHR_materials_unlit`).
 pub const MATERIAL_UNLIT: u32 = 2;
+/// Material flag: rays pass where alpha < `alpha_cutoff` (glTF MASK).
+pub const MATERIAL_ALPHA_MASK: u32 = 4;
+/// Material flag: rays pass with probability 1 − alpha (glTF BLEND).
+pub const MATERIAL_ALPHA_BLEND: u32 = 8;
+/// Either alpha flag.
+pub const MATERIAL_ALPHA: u32 = MATERIAL_ALPHA_MASK | MATERIAL_ALPHA_BLEND;
 
 pub const LIGHT_POINT: u32 = 0;
 pub const LIGHT_DIRECTIONAL: u32 = 1;
@@ -352,6 +363,9 @@ pub struct FlatScene {
     pub environment: Vec<GpuEnvironment>,
     /// The environment map's sampling distribution ([`crate::render::environment`]).
     pub env_distribution: Vec<f32>,
+    /// Some material lets rays through by its alpha ([`MATERIAL_ALPHA`]): shadow rays towards
+    /// point and directional lights then look at what they cross.
+    pub alpha: bool,
 }
 
 impl FlatScene {

@@ -427,7 +427,7 @@ fn second_texture_coordinates_and_transforms_read_where_they_say() {
 
 /// Everything at once on both backends: a pbr material with base colour, metallic-roughness
 /// and normal textures (one through TEXCOORD_1, one transformed), vertex normals and colours,
-/// under a sky and a light, Whitted and path traced: GPU = CPU.
+/// blending by the vertex alpha, under a sky and a light, Whitted and path traced: GPU = CPU.
 #[test]
 fn every_material_path_agrees_on_both_backends() {
     let Some(ctx) = gpu() else { return };
@@ -441,18 +441,19 @@ fn every_material_path_agrees_on_both_backends() {
     mesh.uv1 = Some(vec![[0.0, 1.0], [1.0, 1.0], [0.0, 0.0], [1.0, 0.0], [0.5, 1.0], [0.5, 0.0]]);
     let h = 0.5f32.sqrt();
     mesh.normals = Some(vec![[-h, 0.0, h], [h, 0.0, h], [-h, 0.0, h], [h, 0.0, h], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]);
+    // Vertex alpha from 0.3 to 1: the material blends by it.
     mesh.colors = Some(vec![
         [1.0, 0.8, 0.6, 1.0],
-        [0.6, 1.0, 0.8, 1.0],
-        [0.8, 0.6, 1.0, 1.0],
-        [1.0, 1.0, 1.0, 1.0],
-        [0.9, 0.9, 0.9, 1.0],
-        [0.7, 0.7, 0.7, 1.0],
+        [0.6, 1.0, 0.8, 0.5],
+        [0.8, 0.6, 1.0, 0.8],
+        [1.0, 1.0, 1.0, 0.3],
+        [0.9, 0.9, 0.9, 0.9],
+        [0.7, 0.7, 0.7, 0.6],
     ]);
     mesh.indices = vec![2, 5, 4, 2, 4, 0, 5, 3, 1, 5, 1, 4];
     let material = r#"{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0.1, 0.2], "rotation": 0.3, "scale": [1.5, 1.5]}}},
         "metallicFactor": 1.0, "roughnessFactor": 1.0, "metallicRoughnessTexture": {"index": 1, "texCoord": 1}},
-        "normalTexture": {"index": 2, "scale": 0.8}, "emissiveFactor": [0.1, 0.05, 0.0]}"#;
+        "normalTexture": {"index": 2, "scale": 0.8}, "emissiveFactor": [0.1, 0.05, 0.0], "alphaMode": "BLEND"}"#;
     let images = [
         quadrants_png(),
         png(8, 8, |x, y| [0, (x * 32) as u8, (y * 32) as u8]),
@@ -470,4 +471,134 @@ fn every_material_path_agrees_on_both_backends() {
     let c = cpu_path_image(&prep, frame, 8);
     let g = gpu_path_image(&ctx, &prep, frame, 8);
     assert_backends_agree("all, path", &c, &g);
+}
+
+/// Alpha MASK: where the colour texture's alpha is under the cut-off rays pass (the sky shows
+/// there), elsewhere the surface; a cut-off above the material's alpha makes all of it pass.
+/// Alpha BLEND: Whitted blends the surface over what lies behind it by alpha exactly, path
+/// tracing converges to the same (rays pass with probability 1 − alpha); both backends.
+#[test]
+fn alpha_masks_cut_and_blends_mix() {
+    let dir = tempfile::tempdir().unwrap();
+    // Left half transparent, right half opaque, as seen from the camera.
+    let mut img = image::RgbaImage::new(2, 1);
+    img.put_pixel(0, 0, image::Rgba([255, 255, 255, 0]));
+    img.put_pixel(1, 0, image::Rgba([255, 255, 255, 255]));
+    let mut cut = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut cut, image::ImageFormat::Png).unwrap();
+    let colour = [0.2f32, 0.4, 0.6];
+    let unlit = |rest: &str| {
+        format!(
+            r#"{{"pbrMetallicRoughness": {{"baseColorFactor": [0.2, 0.4, 0.6, {rest}}}, "extensions": {{"KHR_materials_unlit": {{}}}}"#
+        )
+    };
+    let masked = write_gltf(
+        dir.path(),
+        "mask.gltf",
+        &quad(),
+        &format!(
+            r#"{}, "alphaMode": "MASK", "alphaCutoff": 0.5}}"#,
+            unlit(r#"1.0], "baseColorTexture": {"index": 0}"#)
+        ),
+        &[cut.into_inner()],
+        None,
+    );
+    let all_pass = write_gltf(
+        dir.path(),
+        "pass.gltf",
+        &quad(),
+        &format!(r#"{}, "alphaMode": "MASK", "alphaCutoff": 0.5}}"#, unlit("0.4]")),
+        &[],
+        None,
+    );
+    let blend = write_gltf(
+        dir.path(),
+        "blend.gltf",
+        &quad(),
+        &format!(r#"{}, "alphaMode": "BLEND"}}"#, unlit("0.25]")),
+        &[],
+        None,
+    );
+    let ctx = gpu();
+    let close = |got: [f32; 3], want: [f32; 3], tol: f32, what: &str| {
+        assert!((0..3).all(|c| (got[c] - want[c]).abs() <= tol), "{what}: {got:?} vs {want:?}");
+    };
+    let sky = [1.0f32; 3];
+    let p = prepared(&masked);
+    let mut images = vec![("cpu whitted", whitted(&p, 48)), ("cpu path", path(&p, 48, 2))];
+    if let Some(ctx) = &ctx {
+        images.push(("gpu whitted", gpu_whitted(ctx, &p, 48)));
+    }
+    for (what, img) in &images {
+        let q = quadrant_pixels(img);
+        close(q[0], sky, 1e-5, &format!("{what}: the cut-out half shows the sky"));
+        close(q[1], colour, 1e-5, &format!("{what}: the opaque half shows the surface"));
+    }
+    let p = prepared(&all_pass);
+    close(centre(&whitted(&p, 16)), sky, 1e-5, "alpha 0.4 under the cut-off 0.5");
+    let p = prepared(&blend);
+    let want: [f32; 3] = [0, 1, 2].map(|c| 0.25 * colour[c] + 0.75);
+    close(centre(&whitted(&p, 16)), want, 1e-5, "whitted blends by alpha");
+    if let Some(ctx) = &ctx {
+        close(centre(&gpu_whitted(ctx, &p, 16)), want, 1e-5, "gpu whitted blends by alpha");
+    }
+    // Path tracing: each sample shows the surface or the sky; the mean over the quad's centre
+    // (16 × 16 pixels, 64 samples each) within 5 standard errors of the blend.
+    let img = path(&p, 32, 64);
+    let mut sum = 0.0f64;
+    for y in 8..24 {
+        for x in 8..24 {
+            sum += img.get(x, y)[0] as f64;
+        }
+    }
+    let mean = sum / 256.0;
+    let sigma = (0.25f64 * 0.75 * (1.0 - 0.2f64).powi(2) / (256.0 * 64.0)).sqrt();
+    assert!((mean - want[0] as f64).abs() < 5.0 * sigma, "path blend {mean} vs {} (σ {sigma})", want[0]);
+}
+
+/// A BLEND surface of alpha ¼ casts a shadow of ¾ of a directional light onto a white diffuse
+/// plane behind it, in Whitted and path mode (whose shadow rays towards point and directional
+/// lights see alpha), on both backends; outside the shadow the plane shows the full light.
+#[test]
+fn alpha_surfaces_cast_shadows_in_proportion() {
+    let dir = tempfile::tempdir().unwrap();
+    write_gltf(
+        dir.path(),
+        "veil.gltf",
+        &quad(),
+        r#"{"pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 0.25]}, "alphaMode": "BLEND", "extensions": {"KHR_materials_unlit": {}}}"#,
+        &[],
+        None,
+    );
+    // The veil at z = 0 spans x in [-1, 1]; the plane at z = 1 faces the camera at z = -6; the
+    // light travels along (1, 0, 2): the veil's shadow on the plane spans x in [-0.5, 1.5].
+    let text = "[camera]\neye = [0.0, 0.0, -6.0]\nlook_at = [0.0, 0.0, 1.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 40.0\n\
+                [image]\nwidth = 70\nheight = 70\n[render]\nambient = [0.0, 0.0, 0.0]\nbackground = [0.0, 0.0, 0.0]\n\
+                [[materials]]\nname = \"white\"\ntype = \"diffuse\"\ncolor = [1.0, 1.0, 1.0]\n\
+                [[objects]]\ntype = \"gltf\"\nfile = \"veil.gltf\"\n\
+                [[objects]]\ntype = \"plane\"\npoint = [0.0, 0.0, 1.0]\nnormal = [0.0, 0.0, -1.0]\nmaterial = \"white\"\n\
+                [[lights]]\ntype = \"directional\"\ndirection = [1.0, 0.0, 2.0]\nintensity = [3.14159265358979, 3.14159265358979, 3.14159265358979]\n";
+    let path_ = dir.path().join("shadow.toml");
+    std::fs::write(&path_, text).unwrap();
+    let prep = Arc::new(Prepared::new(Scene::load(&path_).unwrap_or_else(|e| panic!("{e}"))));
+    // Pixels looking at the plane at x = 1.25 (in the shadow, beside the veil as seen) and at
+    // x = 2 (lit): the ray through (x, 0, 1) from the eye, on a 70-pixel image of 40°.
+    let column = |x: f64| {
+        let half = (20f64.to_radians()).tan() * 7.0;
+        ((0.5 + 0.5 * x / half) * 70.0) as u32
+    };
+    let cos = 2.0 / 5f32.sqrt();
+    let ctx = gpu();
+    let mut images = vec![("cpu whitted", whitted(&prep, 70)), ("cpu path", path(&prep, 70, 1))];
+    if let Some(ctx) = &ctx {
+        images.push(("gpu whitted", gpu_whitted(ctx, &prep, 70)));
+        let ctx = Arc::new(gpu().unwrap());
+        images.push(("gpu path", gpu_path_image(&ctx, &prep, prep.frame(70, 70), 1)));
+    }
+    for (what, img) in &images {
+        let shadowed = img.get(column(1.25), 35)[0];
+        let lit = img.get(column(2.0), 35)[0];
+        assert!((lit - cos).abs() < 1e-4, "{what}: lit {lit} vs cos {cos}");
+        assert!((shadowed - 0.75 * cos).abs() < 1e-4, "{what}: shadowed {shadowed} vs {}", 0.75 * cos);
+    }
 }

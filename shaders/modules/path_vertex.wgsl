@@ -24,12 +24,19 @@
 #import strahl::bsdf::{BsdfEval, bsdf_sample, bsdf_eval, is_specular}
 #import strahl::emitters::{sample_light, area_pdf, emitted_cos}
 #import strahl::surface::{surface, shading_frame}
+#ifdef ALPHA
+#import strahl::types::{MATERIAL_ALPHA, MATERIAL_ALPHA_BLEND}
+#import strahl::surface::coverage
+#import strahl::traverse::nearest_hit
+#endif
 #ifdef ENVIRONMENT
 #import strahl::environment::{env_background, env_pdf}
 #endif
 
 // Shadow rays stop this fraction short of the light point (render::path::SHADOW_REACH).
 const SHADOW_REACH: f32 = #{SHADOW_REACH};
+// Crossings a shadow ray towards a point or directional light may make (render::shade).
+const SHADOW_PASSES: u32 = #{SHADOW_PASSES};
 
 // A path between vertices (render::path::PathState); host-shareable, for the wavefront
 // tracer's path buffer.
@@ -69,6 +76,39 @@ fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
 fn max3(v: vec3<f32>) -> f32 {
     return max(v.x, max(v.y, v.z));
 }
+
+#ifdef LIGHTS
+// What reaches the end of a shadow ray towards a delta light (render::path::transmittance).
+fn delta_transmittance(o: vec3<f32>, d: vec3<f32>, tmax: f32) -> f32 {
+#ifdef ALPHA
+    var origin = o;
+    var remaining = tmax;
+    var tr = 1.0;
+    for (var k = 0u; k < SHADOW_PASSES; k += 1u) {
+        let hit = nearest_hit(origin, d, 0.0, remaining);
+        if !hit.found {
+            return tr;
+        }
+        let m = materials[hit_material(hit)];
+        if (m.flags & MATERIAL_ALPHA) == 0u {
+            return 0.0;
+        }
+        let hn = hit_normal(hit, origin, d);
+        let sa = surface(m, hit.prim_ref, origin + d * hit.t, hn);
+        tr = tr * (1.0 - coverage(m, sa.alpha));
+        if tr <= 0.0 {
+            return 0.0;
+        }
+        let side = select(-hn, hn, dot(d, hn) >= 0.0);
+        origin = spawn_origin(origin, d, hit.t, side);
+        remaining -= hit.t;
+    }
+    return 0.0;
+#else
+    return select(1.0, 0.0, occluded(o, d, 0.0, tmax));
+#endif
+}
+#endif
 
 // bsdf_eval about the shading normal for directions above the face only (render::path::eval_above).
 fn eval_above(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>, ng: vec3<f32>) -> BsdfEval {
@@ -131,6 +171,21 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
     let wo = -d;
     let sf = surface(untextured, hit.prim_ref, o + d * hit.t, n);
     let m = sf.m;
+#ifdef ALPHA
+    if (m.flags & MATERIAL_ALPHA) != 0u {
+        // Through the surface where it lets the ray pass (render::path::shade_vertex).
+        var stop = 0.5;
+        if (m.flags & MATERIAL_ALPHA_BLEND) != 0u {
+            stop = next_f32(rng);
+        }
+        if !(stop < coverage(m, sf.alpha)) {
+            let side = select(-n, n, dot(d, n) >= 0.0);
+            (*p).o = spawn_origin(o, d, hit.t, side);
+            (*p).specular = 1u;
+            return true;
+        }
+    }
+#endif
     let front = dot(d, n) < 0.0;
     let fr = shading_frame(m, front, n, sf.normal, wo);
     let ng = fr.ng;
@@ -164,8 +219,11 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
             let dl = delta_light(lights[i], x);
             if dl.valid {
                 let ev = eval_above(m, wo, dl.dir, ns, ng);
-                if max3(ev.f_cos) > 0.0 && !occluded(so, dl.dir, 0.0, dl.dist * SHADOW_REACH) {
-                    (*p).sum += (*p).beta * ev.f_cos * dl.value;
+                if max3(ev.f_cos) > 0.0 {
+                    let tr = delta_transmittance(so, dl.dir, dl.dist * SHADOW_REACH);
+                    if tr > 0.0 {
+                        (*p).sum += (*p).beta * ev.f_cos * dl.value * tr;
+                    }
                 }
             }
         }

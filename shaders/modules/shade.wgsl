@@ -2,15 +2,16 @@
 //
 // Shader defs: LIGHTS (any light; with it POINT_LIGHTS / DIRECTIONAL_LIGHTS), MIRROR,
 // DIELECTRIC, EMISSIVE (which material kinds exist; diffuse is always compiled), and
-// SHADOW_CROSSING (DIELECTRIC or EMISSIVE: shadow rays may pass surfaces).
+// SHADOW_CROSSING (DIELECTRIC, EMISSIVE or ALPHA: shadow rays may pass surfaces), ALPHA
+// (materials let rays through by alpha).
 #define_import_path strahl::shade
 
-#import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, MAT_PBR, LIGHT_POINT, F32_MAX}
+#import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, MAT_PBR, MATERIAL_ALPHA, LIGHT_POINT, F32_MAX}
 #import strahl::bindings::{frame, materials, lights}
 #import strahl::traverse::{nearest_hit, occluded, hit_normal, hit_material}
 #import strahl::spawn::spawn_origin
 #import strahl::raygen::primary_ray
-#import strahl::surface::{surface, shading_frame}
+#import strahl::surface::{surface, shading_frame, coverage}
 #ifdef PBR
 #import strahl::pbr::pbr_lobes
 #endif
@@ -71,12 +72,22 @@ fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec
         }
         // Dielectrics tint the shadow ray; emissive surfaces (lights) let it through.
         let m = materials[hit_material(hit)];
+        let hn = hit_normal(hit, origin, l);
+#ifdef ALPHA
+        if (m.flags & MATERIAL_ALPHA) != 0u {
+            let sa = surface(m, hit.prim_ref, origin + l * hit.t, hn);
+            tr = tr * (1.0 - coverage(m, sa.alpha));
+            if max(tr.x, max(tr.y, tr.z)) <= 0.0 {
+                return vec3<f32>(0.0);
+            }
+        } else if m.kind == MAT_DIELECTRIC {
+#else
         if m.kind == MAT_DIELECTRIC {
+#endif
             tr = tr * m.color;
         } else if m.kind != MAT_EMISSIVE {
             return vec3<f32>(0.0);
         }
-        let hn = hit_normal(hit, origin, l);
         let side = select(hn, -hn, dot(l, hn) < 0.0);
         origin = spawn_origin(origin, l, hit.t, side);
         remaining -= hit.t;
@@ -187,6 +198,21 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
         let n = hit_normal(hit, cur.origin, cur.dir);
         let s = surface(materials[hit_material(hit)], hit.prim_ref, cur.origin + cur.dir * hit.t, n);
         let m = s.m;
+        var weight = cur.weight;
+#ifdef ALPHA
+        if (m.flags & MATERIAL_ALPHA) != 0u {
+            // What the surface lets through goes on as a ray of its own (render::shade).
+            let c = coverage(m, s.alpha);
+            if c < 1.0 && ray_stack_size(&rs) < WHITTED_STACK {
+                let side = select(-n, n, dot(cur.dir, n) >= 0.0);
+                ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, side), cur.dir, weight * (1.0 - c), cur.depth));
+            }
+            if c <= 0.0 {
+                continue;
+            }
+            weight = weight * c;
+        }
+#endif
         let front = dot(cur.dir, n) < 0.0;
         let fr = shading_frame(m, front, n, s.normal, -cur.dir);
         let ng = fr.ng;
@@ -200,14 +226,14 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
         var handled = false;
 #ifdef EMISSIVE
         if m.kind == MAT_EMISSIVE {
-            color += cur.weight * m.radiance;
+            color += weight * m.radiance;
             handled = true;
         }
 #endif
 #ifdef MIRROR
         if m.kind == MAT_MIRROR {
             if cur.depth < max_depth && ray_stack_size(&rs) < WHITTED_STACK {
-                ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, ng), mirrored, cur.weight * m.color, cur.depth + 1u));
+                ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, ng), mirrored, weight * m.color, cur.depth + 1u));
             }
             handled = true;
         }
@@ -219,10 +245,10 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
             let rough = 1.0 - clamp(m.roughness, 0.0, 1.0);
             let sharp = rough * rough;
             let diffuse = l.diffuse + l.spec_albedo * (1.0 - sharp);
-            color += cur.weight * m.radiance;
-            color += cur.weight * direct_light(cur.origin, cur.dir, hit.t, ng, ns, diffuse);
+            color += weight * m.radiance;
+            color += weight * direct_light(cur.origin, cur.dir, hit.t, ng, ns, diffuse);
             if cur.depth < max_depth && ray_stack_size(&rs) < WHITTED_STACK && sharp > 0.0 {
-                ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, ng), mirrored, cur.weight * (l.spec_albedo * sharp), cur.depth + 1u));
+                ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, ng), mirrored, weight * (l.spec_albedo * sharp), cur.depth + 1u));
             }
             handled = true;
         }
@@ -234,18 +260,18 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
                 let eta = select(1.0 / m.ior, m.ior, front);
                 let f = fresnel_dielectric(cos_i, eta);
                 if ray_stack_size(&rs) < WHITTED_STACK {
-                    ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, ns), reflect_dir(cur.dir, ns), cur.weight * f, cur.depth + 1u));
+                    ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, ns), reflect_dir(cur.dir, ns), weight * f, cur.depth + 1u));
                 }
                 if f < 1.0 && ray_stack_size(&rs) < WHITTED_STACK {
                     let t = refract_dir(cur.dir, ns, cos_i, 1.0 / eta);
-                    ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, -ns), t, cur.weight * m.color * (1.0 - f), cur.depth + 1u));
+                    ray_stack_push(&rs, Pending(spawn_origin(cur.origin, cur.dir, hit.t, -ns), t, weight * m.color * (1.0 - f), cur.depth + 1u));
                 }
             }
             handled = true;
         }
 #endif
         if !handled {
-            color += cur.weight * direct_light(cur.origin, cur.dir, hit.t, ng, ns, m.color);
+            color += weight * direct_light(cur.origin, cur.dir, hit.t, ng, ns, m.color);
         }
     }
     return color;

@@ -6,7 +6,7 @@
 // has normals or colours).
 #define_import_path strahl::surface
 
-#import strahl::types::{Material, MAT_DIELECTRIC}
+#import strahl::types::{Material, MAT_DIELECTRIC, MAT_MIRROR, MAT_PBR, MATERIAL_ALPHA_MASK, MATERIAL_ALPHA_BLEND}
 #ifdef TEXTURES
 #import strahl::types::{TextureInfo, KIND_TRIANGLE, INDEX_BITS, INDEX_MASK, ATTR_NORMALS, ATTR_COLORS, TEXTURE_UV1, MATERIAL_UNLIT}
 #import strahl::bindings::{triangle_attrs, textures}
@@ -23,6 +23,19 @@ struct Surface {
     m: Material,
     // Unit shading normal, on the side of the geometric normal given.
     normal: vec3<f32>,
+    // The material's alpha times its colour texture's and the vertex colours'.
+    alpha: f32,
+}
+
+// How much of a ray the surface stops (render::surface::coverage).
+fn coverage(m: Material, alpha: f32) -> f32 {
+    if (m.flags & MATERIAL_ALPHA_MASK) != 0u {
+        return select(0.0, 1.0, alpha >= m.alpha_cutoff);
+    }
+    if (m.flags & MATERIAL_ALPHA_BLEND) != 0u {
+        return clamp(alpha, 0.0, 1.0);
+    }
+    return 1.0;
 }
 
 // The face normal and the shading normal on wo's side (render::surface::shading_frame).
@@ -37,7 +50,31 @@ fn shading_frame(m: Material, front: bool, n: vec3<f32>, shading: vec3<f32>, wo:
     if m.kind == MAT_DIELECTRIC || dot(ns, wo) <= 0.0 {
         return Frame2(ng, ng);
     }
+    if m.kind == MAT_MIRROR || m.kind == MAT_PBR {
+        return Frame2(ng, reflecting_normal(ng, wo, ns));
+    }
     return Frame2(ng, ns);
+}
+
+// ns turned towards ng just far enough that wo's mirror direction leaves the face
+// (render::surface::reflecting_normal).
+fn reflecting_normal(ng: vec3<f32>, wo: vec3<f32>, ns: vec3<f32>) -> vec3<f32> {
+    let wz = dot(wo, ng);
+    let t = min(0.9 * wz, 0.01);
+    let c0 = dot(ns, ng);
+    if 2.0 * dot(wo, ns) * c0 - wz >= t {
+        return ns;
+    }
+    let tangential = ns - ng * c0;
+    let s0 = length(tangential);
+    if !(s0 > 0.0) {
+        return ns;
+    }
+    let x = tangential / s0;
+    let wx = dot(wo, x);
+    let a = sqrt(wx * wx + wz * wz);
+    let phi = clamp(0.5 * (atan2(wx, wz) + acos(clamp(t / a, -1.0, 1.0))), 0.0, atan2(s0, c0));
+    return normalize(ng * cos(phi) + x * sin(phi));
 }
 
 #ifdef TEXTURES
@@ -100,7 +137,7 @@ fn look(texture: u32, tri: u32, w: vec3<f32>) -> vec4<f32> {
 
 // Material m at point p of primitive prim, geometric normal n there (render::surface::surface).
 fn surface(m: Material, prim: u32, p: vec3<f32>, n: vec3<f32>) -> Surface {
-    var s = Surface(m, n);
+    var s = Surface(m, n, m.alpha);
 #ifdef TEXTURES
 #ifdef TRIANGLES
     if (prim >> INDEX_BITS) != KIND_TRIANGLE {
@@ -116,6 +153,7 @@ fn surface(m: Material, prim: u32, p: vec3<f32>, n: vec3<f32>) -> Surface {
     let w = vec3<f32>(1.0 - bc.x - bc.y, bc.x, bc.y);
     let a = triangle_attrs[i];
     var vertex = vec3<f32>(1.0);
+    var vertex_alpha = 1.0;
     if (a.flags & ATTR_COLORS) != 0u {
         let ka = unpack4x8unorm(a.color[0]);
         let kb = unpack4x8unorm(a.color[1]);
@@ -125,8 +163,11 @@ fn surface(m: Material, prim: u32, p: vec3<f32>, n: vec3<f32>) -> Surface {
             ka.y * w.x + kb.y * w.y + kc.y * w.z,
             ka.z * w.x + kb.z * w.y + kc.z * w.z,
         );
+        vertex_alpha = ka.w * w.x + kb.w * w.y + kc.w * w.z;
     }
-    s.m.color = m.color * look(m.color_texture, i, w).xyz * vertex;
+    let c = look(m.color_texture, i, w);
+    s.m.color = m.color * c.xyz * vertex;
+    s.alpha = m.alpha * c.w * vertex_alpha;
     var radiance = m.radiance * look(m.radiance_texture, i, w).xyz;
     if (m.flags & MATERIAL_UNLIT) != 0u {
         // An unlit material shows its base colour, vertex colours included.

@@ -103,6 +103,10 @@ struct Material {
     metal_rough_texture: u32,
     normal_texture: u32,
     normal_scale: f32,
+    // Alpha factor and the MASK cut-off.
+    alpha: f32,
+    alpha_cutoff: f32,
+    pad: vec2<u32>,
 }
 
 // A use of an image in `texels` (gpu_types::GpuTexture): the texture-coordinate transform
@@ -204,6 +208,9 @@ const LIGHT_POINT: u32 = #{LIGHT_POINT};
 const LIGHT_STAND_IN: u32 = #{LIGHT_STAND_IN};
 const MATERIAL_TWO_SIDED: u32 = #{MATERIAL_TWO_SIDED};
 const MATERIAL_UNLIT: u32 = #{MATERIAL_UNLIT};
+const MATERIAL_ALPHA_MASK: u32 = #{MATERIAL_ALPHA_MASK};
+const MATERIAL_ALPHA_BLEND: u32 = #{MATERIAL_ALPHA_BLEND};
+const MATERIAL_ALPHA: u32 = #{MATERIAL_ALPHA};
 
 const FRAME_ACCUMULATE: u32 = #{FRAME_ACCUMULATE};
 const FRAME_ENVIRONMENT: u32 = #{FRAME_ENVIRONMENT};

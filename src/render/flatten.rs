@@ -9,7 +9,7 @@ use crate::accel::gpu_bvh::GpuBvh;
 use crate::gpu_types::*;
 use crate::math::V3;
 use crate::primitives::{PrimKind, PrimRef, Primitives, Tagged};
-use crate::scene::{Geometry, Light, Scene};
+use crate::scene::{AlphaMode, Geometry, Light, Scene};
 
 const PI: f64 = std::f64::consts::PI;
 
@@ -81,13 +81,25 @@ impl FlatScene {
                     radiance: rgb(m.radiance),
                     ior: m.ior as f32,
                     roughness: m.roughness as f32,
-                    flags: if m.two_sided { MATERIAL_TWO_SIDED } else { 0 } | if m.unlit { MATERIAL_UNLIT } else { 0 },
+                    flags: if m.two_sided { MATERIAL_TWO_SIDED } else { 0 }
+                        | if m.unlit { MATERIAL_UNLIT } else { 0 }
+                        | match m.alpha_mode {
+                            AlphaMode::Opaque => 0,
+                            AlphaMode::Mask(_) => MATERIAL_ALPHA_MASK,
+                            AlphaMode::Blend => MATERIAL_ALPHA_BLEND,
+                        },
                     color_texture: m.color_texture.map_or(0, |t| t + 1),
                     radiance_texture: m.radiance_texture.map_or(0, |t| t + 1),
                     metallic: m.metallic as f32,
                     metal_rough_texture: m.metal_rough_texture.map_or(0, |t| t + 1),
                     normal_texture: m.normal_texture.map_or(0, |t| t + 1),
                     normal_scale: m.normal_scale as f32,
+                    alpha: m.alpha as f32,
+                    alpha_cutoff: match m.alpha_mode {
+                        AlphaMode::Mask(c) => c as f32,
+                        _ => 0.0,
+                    },
+                    _pad: [0; 2],
                 })
                 .collect(),
             lights: scene
@@ -115,7 +127,9 @@ impl FlatScene {
             triangle_attrs: Vec::new(),
             environment: Vec::new(),
             env_distribution: Vec::new(),
+            alpha: false,
         };
+        g.alpha = g.materials.iter().any(|m| m.flags & MATERIAL_ALPHA != 0);
         if let Ok(tree) = GpuBvh::collapse(bvh, prims) {
             (g.nodes, g.shape_refs, g.leaf_triangles) = (tree.nodes, tree.shape_refs, tree.triangles);
         }

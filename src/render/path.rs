@@ -10,8 +10,9 @@
 //! Point and directional lights are evaluated at every non-specular vertex, each with a
 //! shadow ray (see [`super::emitters`] for why they are not chosen by power); they use no
 //! random numbers. Both backends consume the random stream in the same order: at every vertex
-//! three numbers for the area-light sample (drawn even where unused), three for the BSDF, and
-//! one for Russian roulette when it applies; and add to a path's radiance in the same order:
+//! one number where the surface's material blends by alpha (whether the ray passes), three
+//! for the area-light sample (drawn even where unused), three for the BSDF, and one for
+//! Russian roulette when it applies; and add to a path's radiance in the same order:
 //! emission, point and directional lights, the area-light sample.
 //!
 //! The stages are those of `shaders/modules/path_vertex.wgsl` ([`PathState`], [`shade_vertex`],
@@ -27,7 +28,7 @@ use super::shade::ShadeInputs;
 use super::spawn::spawn_origin;
 use super::surface;
 use crate::accel::wide_traverse;
-use crate::gpu_types::GpuMaterial;
+use crate::gpu_types::{GpuMaterial, MATERIAL_ALPHA, MATERIAL_ALPHA_BLEND};
 use crate::math::{Ray, V3};
 use crate::primitives::{Hit, PrimKind};
 use crate::scene::MaterialKind;
@@ -121,6 +122,22 @@ pub fn shade_vertex(
     let wo = -ray.dir;
     let s = surface::surface(g, untextured, hit.prim_ref, ray.at(hit.t), hit.normal);
     let m = &s.m;
+    if m.flags & MATERIAL_ALPHA != 0 {
+        // A BLEND surface stops the ray with probability alpha (one random number, drawn only
+        // here); a MASK one where alpha reaches the cut-off.
+        let stop = if m.flags & MATERIAL_ALPHA_BLEND != 0 { rng.next_f32() } else { 0.5 };
+        let c = surface::coverage(m, s.alpha);
+        if !(stop < c) {
+            // On through the surface, the same segment. Next-event estimation's shadow rays
+            // towards area lights and the sky stop at such surfaces, so light through them is
+            // found by this path alone: it counts in full where it arrives (as after a
+            // specular bounce), which keeps the estimate unbiased.
+            let side = if ray.dir.dot(hit.normal) >= 0.0 { hit.normal } else { -hit.normal };
+            p.ray = Ray::new(spawn_origin(&ray, hit.t, side), ray.dir);
+            p.specular = true;
+            return true;
+        }
+    }
     let front = ray.dir.dot(hit.normal) < 0.0;
     let (ng, ns) = surface::shading_frame(m, front, hit.normal, s.normal, wo);
     if m.kind() == MaterialKind::Emissive || m.kind() == MaterialKind::Pbr {
@@ -146,8 +163,11 @@ pub fn shade_vertex(
         for l in &g.lights[..f.num_lights as usize] {
             let Some(ls) = emitters::delta_light(l, x) else { continue };
             let (fc, _) = eval_above(m, wo, ls.dir, ns, ng);
-            if fc.max_component() > 0.0 && !occluded(inp, &Ray::new(origin, ls.dir), ls.dist * SHADOW_REACH) {
-                p.sum += p.beta.mul_elem(fc).mul_elem(ls.value);
+            if fc.max_component() > 0.0 {
+                let tr = transmittance(inp, &Ray::new(origin, ls.dir), ls.dist * SHADOW_REACH);
+                if tr > 0.0 {
+                    p.sum += p.beta.mul_elem(fc).mul_elem(ls.value) * tr;
+                }
             }
         }
         if let Some(ls) = emitters::sample(g, f, x, u_light) {
@@ -190,6 +210,39 @@ pub fn eval_above(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>, ng: V3
         return (V3::zero(), 0.0);
     }
     bsdf::eval(m, wo, wi, ns)
+}
+
+/// What reaches the end of a shadow ray towards a point or directional light, up to `tmax`:
+/// 0 or 1 when no material has alpha (any surface blocks), else the product of what the alpha
+/// surfaces crossed let through (1 − coverage), 0 at the first opaque surface or after
+/// [`super::shade::SHADOW_PASSES`] crossings. Only the delta lights need it: light from area
+/// emitters and the sky through alpha surfaces is found by paths that pass them.
+pub fn transmittance(inp: &ShadeInputs, ray: &Ray<f32>, tmax: f32) -> f32 {
+    if !inp.gpu.alpha {
+        return if occluded(inp, ray, tmax) { 0.0 } else { 1.0 };
+    }
+    let mut origin = ray.origin;
+    let mut remaining = tmax;
+    let mut tr = 1.0f32;
+    for _ in 0..super::shade::SHADOW_PASSES {
+        let r = Ray::new(origin, ray.dir);
+        let Some(hit) = wide_traverse::nearest(inp.wide, inp.prims, &r, 0.0, remaining) else {
+            return tr;
+        };
+        let m = &inp.gpu.materials[hit.tag.material as usize];
+        if m.flags & MATERIAL_ALPHA == 0 {
+            return 0.0;
+        }
+        let s = surface::surface(inp.gpu, m, hit.prim_ref, r.at(hit.t), hit.normal);
+        tr *= 1.0 - surface::coverage(m, s.alpha);
+        if tr <= 0.0 {
+            return 0.0;
+        }
+        let side = if ray.dir.dot(hit.normal) >= 0.0 { hit.normal } else { -hit.normal };
+        origin = spawn_origin(&r, hit.t, side);
+        remaining -= hit.t;
+    }
+    0.0
 }
 
 /// Whether anything lies in (0, tmax) along the shadow ray.

@@ -11,7 +11,7 @@ use super::environment;
 use super::spawn::spawn_origin;
 use super::{pbr, surface};
 use crate::accel::{WideBvh, wide_traverse};
-use crate::gpu_types::{FlatScene, FrameParams, GpuLight, GpuMaterial, LIGHT_POINT};
+use crate::gpu_types::{FlatScene, FrameParams, GpuLight, GpuMaterial, LIGHT_POINT, MATERIAL_ALPHA};
 use crate::math::{Ray, V3};
 use crate::primitives::Primitives;
 use crate::scene::MaterialKind;
@@ -58,8 +58,8 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
 }
 
 /// Transmittance from the hit at `t` along `from` towards a light `dist` away: 0 if an opaque
-/// surface blocks it, the product of dielectric colours crossed otherwise (emissive surfaces
-/// let it through).
+/// surface blocks it, the product of dielectric colours and of what alpha surfaces let through
+/// (1 − coverage) crossed otherwise (emissive surfaces let it through).
 fn shadow_transmittance(inp: &ShadeInputs, from: &Ray<f32>, t: f32, n: V3<f32>, l: V3<f32>, dist: f32) -> V3<f32> {
     let mut origin = spawn_origin(from, t, n);
     let mut remaining = dist;
@@ -71,7 +71,13 @@ fn shadow_transmittance(inp: &ShadeInputs, from: &Ray<f32>, t: f32, n: V3<f32>, 
         };
         let m = &inp.gpu.materials[hit.tag.material as usize];
         // Emissive surfaces are lights (their stand-ins sit inside them): they cast no shadow.
-        if m.kind() == MaterialKind::Dielectric {
+        if m.flags & MATERIAL_ALPHA != 0 {
+            let s = surface::surface(inp.gpu, m, hit.prim_ref, ray.at(hit.t), hit.normal);
+            tr = tr * (1.0 - surface::coverage(m, s.alpha));
+            if tr.max_component() <= 0.0 {
+                return V3::zero();
+            }
+        } else if m.kind() == MaterialKind::Dielectric {
             tr = tr.mul_elem(V3::from_array(m.color));
         } else if m.kind() != MaterialKind::Emissive {
             return V3::zero();
@@ -135,6 +141,25 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
         let untextured = &inp.gpu.materials[hit.tag.material as usize];
         let s = surface::surface(inp.gpu, untextured, hit.prim_ref, ray.at(hit.t), hit.normal);
         let m: &GpuMaterial = &s.m;
+        let mut weight = weight;
+        if m.flags & MATERIAL_ALPHA != 0 {
+            // What the surface lets through goes on as a ray of its own (no bounce); the
+            // surface is shaded with the rest.
+            let c = surface::coverage(m, s.alpha);
+            if c < 1.0 && sp < WHITTED_STACK {
+                let side = if ray.dir.dot(hit.normal) >= 0.0 { hit.normal } else { -hit.normal };
+                stack[sp] = Pending {
+                    ray: Ray::new(spawn_origin(&ray, hit.t, side), ray.dir),
+                    weight: weight * (1.0 - c),
+                    depth,
+                };
+                sp += 1;
+            }
+            if c <= 0.0 {
+                continue;
+            }
+            weight = weight * c;
+        }
         let front = ray.dir.dot(hit.normal) < 0.0;
         let (ng, ns) = surface::shading_frame(m, front, hit.normal, s.normal, -ray.dir);
         let albedo = V3::from_array(m.color);

@@ -13,7 +13,10 @@
 //! light is in [`super::path`].
 
 use super::texture::{barycentrics, sample_rgba};
-use crate::gpu_types::{ATTR_COLORS, ATTR_NORMALS, FlatScene, GpuMaterial, GpuTexture, MATERIAL_UNLIT, TEXTURE_UV1};
+use crate::gpu_types::{
+    ATTR_COLORS, ATTR_NORMALS, FlatScene, GpuMaterial, GpuTexture, MATERIAL_ALPHA_BLEND, MATERIAL_ALPHA_MASK,
+    MATERIAL_UNLIT, TEXTURE_UV1,
+};
 use crate::math::V3;
 use crate::primitives::{PrimKind, PrimRef};
 use crate::scene::MaterialKind;
@@ -25,6 +28,8 @@ pub struct Surface {
     pub m: GpuMaterial,
     /// The unit shading normal, on the side of the geometric normal the hit was given.
     pub normal: V3<f32>,
+    /// The material's alpha times its colour texture's and the vertex colours' alpha.
+    pub alpha: f32,
 }
 
 /// Decodes [`crate::gpu_types::encode_octahedral`] (as WGSL's `unpack2x16snorm` reads the
@@ -44,6 +49,20 @@ pub fn decode_octahedral(w: u32) -> V3<f32> {
 #[inline]
 fn decode_unorm8x4(w: u32) -> [f32; 4] {
     [0, 8, 16, 24].map(|s| ((w >> s) & 255) as f32 / 255.0)
+}
+
+/// How much of a ray the surface stops, from its alpha and the material's mode: 1 for opaque
+/// materials and MASK alpha at or above the cut-off, 0 below it, alpha itself (clamped) for
+/// BLEND.
+#[inline]
+pub fn coverage(m: &GpuMaterial, alpha: f32) -> f32 {
+    if m.flags & MATERIAL_ALPHA_MASK != 0 {
+        if alpha >= m.alpha_cutoff { 1.0 } else { 0.0 }
+    } else if m.flags & MATERIAL_ALPHA_BLEND != 0 {
+        alpha.clamp(0.0, 1.0)
+    } else {
+        1.0
+    }
 }
 
 /// Whether a normalised vector came out as one (not NaN from a zero vector): the test the
@@ -67,7 +86,7 @@ fn lerp_uv(uv: &[[f32; 2]; 3], w: [f32; 3]) -> [f32; 2] {
 
 /// Material `m` at the point `p` of primitive `prim`, whose geometric normal there is `n`.
 pub fn surface(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>, n: V3<f32>) -> Surface {
-    let mut s = Surface { m: *m, normal: n };
+    let mut s = Surface { m: *m, normal: n, alpha: m.alpha };
     if prim.kind() != PrimKind::Triangle || g.triangle_attrs.is_empty() {
         return s;
     }
@@ -87,12 +106,15 @@ pub fn surface(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>, n: V3<
         sample_rgba(&g.texels, t, u, v)
     };
     let mut vertex = V3::splat(1.0);
+    let mut vertex_alpha = 1.0;
     if a.flags & ATTR_COLORS != 0 {
         let k = a.color.map(decode_unorm8x4);
         let vc = |c: usize| k[0][c] * w[0] + k[1][c] * w[1] + k[2][c] * w[2];
         vertex = V3::new(vc(0), vc(1), vc(2));
+        vertex_alpha = vc(3);
     }
     let c = look(m.color_texture);
+    s.alpha = m.alpha * c[3] * vertex_alpha;
     s.m.color = V3::from_array(m.color).mul_elem(V3::new(c[0], c[1], c[2])).mul_elem(vertex).to_array();
     let r = look(m.radiance_texture);
     let mut radiance = V3::from_array(m.radiance).mul_elem(V3::new(r[0], r[1], r[2]));
@@ -142,18 +164,82 @@ pub fn surface(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>, n: V3<
 /// The geometric normal and the shading normal on `wo`'s side of a surface whose face normal
 /// is `n` and interpolated or mapped normal `shading` (on n's side): the shading normal where
 /// `wo` lies above it, else the face's (a normal bent away from the viewer would see its back).
-/// Dielectrics refract about the face's normal.
+/// Dielectrics refract about the face's normal. Mirrors and pbr surfaces reflect about a normal
+/// bent back towards the face's as far as [`reflecting_normal`] needs.
 #[inline]
 pub fn shading_frame(m: &GpuMaterial, front: bool, n: V3<f32>, shading: V3<f32>, wo: V3<f32>) -> (V3<f32>, V3<f32>) {
     let ng = if front { n } else { -n };
     let ns = if front { shading } else { -shading };
-    if m.kind() == MaterialKind::Dielectric || ns.dot(wo) <= 0.0 { (ng, ng) } else { (ng, ns) }
+    if m.kind() == MaterialKind::Dielectric || ns.dot(wo) <= 0.0 {
+        return (ng, ng);
+    }
+    if matches!(m.kind(), MaterialKind::Mirror | MaterialKind::Pbr) {
+        return (ng, reflecting_normal(ng, wo, ns));
+    }
+    (ng, ns)
+}
+
+/// `ns` turned towards `ng` (in the plane of the two) just far enough that `wo` mirrored about
+/// it leaves the face at least min(0.9·(wo·ng), 0.01) above it; `ns` itself where it already
+/// does. Without this a normal map that tilts far from the face sends mirror reflections into
+/// the surface, where the path ends: black rims on the bumps of a normal-mapped metal. (The
+/// same remedy as Cycles' "valid specular reflection"; the solution here is our own.) With
+/// n = cos φ·ng + sin φ·x (x the unit part of ns orthogonal to ng) and wo = (w_x, w_z) in that
+/// frame, the mirror direction's height above the face is
+/// 2(wo·n)(n·ng) − wo·ng = w_x sin 2φ + w_z cos 2φ = A cos(2φ − δ), A = |(w_x, w_z)|,
+/// δ = atan2(w_x, w_z); it is w_z ≥ the threshold t at φ = 0 and first falls to t at
+/// φ = (δ + acos(t / A)) / 2, the angle kept (at most ns's own).
+#[inline]
+pub fn reflecting_normal(ng: V3<f32>, wo: V3<f32>, ns: V3<f32>) -> V3<f32> {
+    let wz = wo.dot(ng);
+    let t = (0.9 * wz).min(0.01);
+    let c0 = ns.dot(ng);
+    if 2.0 * wo.dot(ns) * c0 - wz >= t {
+        return ns;
+    }
+    let tangential = ns - ng * c0;
+    let s0 = tangential.length();
+    if !(s0 > 0.0) {
+        return ns;
+    }
+    let x = tangential / s0;
+    let wx = wo.dot(x);
+    let a = (wx * wx + wz * wz).sqrt();
+    let phi = (0.5 * (wx.atan2(wz) + (t / a).clamp(-1.0, 1.0).acos())).clamp(0.0, s0.atan2(c0));
+    (ng * phi.cos() + x * phi.sin()).normalize()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::gpu_types::encode_octahedral;
+
+    /// A normal tilted so far that the mirror direction would enter the surface is bent back
+    /// until it leaves at the threshold, no further; one that reflects above is kept.
+    #[test]
+    fn reflecting_normals_keep_mirror_directions_above_the_face() {
+        let ng = V3::new(0.0, 0.0, 1.0);
+        let wo = V3::new(0.0, 0.0, 1.0);
+        for tilt in [10.0f32, 44.0, 50.0, 70.0, 89.0] {
+            let (s, c) = tilt.to_radians().sin_cos();
+            let ns = V3::new(s, 0.0, c);
+            let n = reflecting_normal(ng, wo, ns);
+            let r = n * (2.0 * wo.dot(n)) - wo;
+            if tilt < 45.0 {
+                assert_eq!(n, ns, "tilt {tilt}: reflects above the face already");
+            } else {
+                assert!((r.dot(ng) - 0.01).abs() < 1e-4, "tilt {tilt}: leaves at {}", r.dot(ng));
+                assert!(n.x > 0.0 && n.y.abs() < 1e-6, "tilt {tilt}: bent within the plane of ns and ng: {n:?}");
+            }
+        }
+        // A grazing view (wo·ng = 0.01): the threshold is 0.9·(wo·ng).
+        let wo = V3::new(-0.9999f32.sqrt(), 0.0, 0.01);
+        let ns = V3::new(0.005, 0.0, (1.0f32 - 0.000025).sqrt());
+        assert!((ns * (2.0 * wo.dot(ns)) - wo).z < 0.009, "the case must need bending");
+        let n = reflecting_normal(ng, wo, ns);
+        let r = n * (2.0 * wo.dot(n)) - wo;
+        assert!((r.dot(ng) - 0.009).abs() < 2e-4, "{}", r.dot(ng));
+    }
 
     #[test]
     fn octahedral_codes_round_trip_within_their_precision() {

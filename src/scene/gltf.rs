@@ -20,10 +20,10 @@
 
 use super::mesh::Transform;
 use super::texture::{IDENTITY_UV, ImageKind, Texels, Texture, Wrap};
+use super::{AlphaMode, LoadOptions, RenderSettings, Scene, SceneError};
 use super::{
     Camera, Environment, Geometry, ImageSize, Light, Material, MaterialKind, MeshAttributes, Object, RenderMode,
 };
-use super::{LoadOptions, RenderSettings, Scene, SceneError};
 use crate::geometry::Triangle;
 use crate::math::V3;
 use glam::{DMat3, DMat4, DVec3};
@@ -728,13 +728,21 @@ impl Reader<'_> {
                 Some(n) => format!("{at} \"{n}\""),
                 None => at.clone(),
             };
-            let mut out = Material { name, kind, color, ior, ..Material::default_grey() };
+            let alpha_mode = match m.alpha_mode() {
+                gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+                gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5) as f64),
+                gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+            };
+            let alpha = (base[3] as f64).clamp(0.0, 1.0);
+            let mut out = Material { name, kind, color, ior, alpha, alpha_mode, ..Material::default_grey() };
             match kind {
                 MaterialKind::Emissive => {
                     // KHR_materials_unlit: the base colour shown as it is, from both sides.
+                    // (The colour texture stays for its alpha; the colour it multiplies is black.)
                     out.color = [0.0; 3];
                     out.radiance = color;
                     out.radiance_texture = color_texture;
+                    out.color_texture = color_texture;
                     out.two_sided = true;
                     out.unlit = true;
                 }

@@ -111,6 +111,20 @@ impl MaterialKind {
     }
 }
 
+/// What a material's alpha (base colour alpha × texture alpha × vertex alpha) does: glTF's
+/// `alphaMode`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum AlphaMode {
+    /// Alpha is ignored.
+    #[default]
+    Opaque,
+    /// Rays pass where alpha is below the cut-off; elsewhere the surface is opaque.
+    Mask(f64),
+    /// A ray passes with probability 1 − alpha (path mode); Whitted blends the surface over
+    /// what lies behind it by alpha.
+    Blend,
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     pub name: String,
@@ -146,6 +160,9 @@ pub struct Material {
     /// Shows `radiance` (glTF `KHR_materials_unlit`: its base colour) and lights nothing: not
     /// an area light, no stand-in.
     pub unlit: bool,
+    /// Alpha factor (glTF's base colour alpha) and what alpha does.
+    pub alpha: f64,
+    pub alpha_mode: AlphaMode,
 }
 
 impl Material {
@@ -166,6 +183,8 @@ impl Material {
             normal_texture: None,
             normal_scale: 1.0,
             unlit: false,
+            alpha: 1.0,
+            alpha_mode: AlphaMode::Opaque,
         }
     }
 

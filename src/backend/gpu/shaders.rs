@@ -94,8 +94,10 @@ impl FeatureKey {
     pub const ENV_MAP: u32 = 1 << 13;
     /// glTF's metallic-roughness material.
     pub const PBR: u32 = 1 << 14;
-    pub const FLAG_COUNT: u32 = 15;
-    pub const NAMES: [&'static str; 15] = [
+    /// A material lets rays through by its alpha (glTF MASK or BLEND).
+    pub const ALPHA: u32 = 1 << 15;
+    pub const FLAG_COUNT: u32 = 16;
+    pub const NAMES: [&'static str; 16] = [
         "SPHERES",
         "CYLINDERS",
         "TRIANGLES",
@@ -111,6 +113,7 @@ impl FeatureKey {
         "ENVIRONMENT",
         "ENV_MAP",
         "PBR",
+        "ALPHA",
     ];
     /// Flags that describe the device rather than the scene.
     pub const DEVICE: u32 = Self::LOAD64;
@@ -122,7 +125,7 @@ impl FeatureKey {
         Self::SPHERES | Self::CYLINDERS | Self::TRIANGLES | Self::PLANES | Self::BVH | Self::DEVICE | Self::SPLIT;
     /// Flags of the textures and the environment, which only the shading programs (render,
     /// path) read.
-    pub const ASSETS: u32 = Self::TEXTURES | Self::ENVIRONMENT | Self::ENV_MAP | Self::PBR;
+    pub const ASSETS: u32 = Self::TEXTURES | Self::ENVIRONMENT | Self::ENV_MAP | Self::PBR | Self::ALPHA;
     /// Every scene feature: the one shader that renders any scene.
     pub const ALL: FeatureKey = FeatureKey(((1 << Self::FLAG_COUNT) - 1) & !Self::DEVICE);
 
@@ -158,6 +161,7 @@ impl FeatureKey {
         // pbr emission is added under EMISSIVE, which has the emitters' code.
         set(has(MaterialKind::Emissive) || scene.materials.iter().any(|m| m.is_light()), Self::EMISSIVE);
         set(has(MaterialKind::Pbr), Self::PBR);
+        set(scene.materials.iter().any(|m| m.alpha_mode != crate::scene::AlphaMode::Opaque), Self::ALPHA);
         set(crate::render::flatten::needs_attributes(scene), Self::TEXTURES);
         set(scene.environment.is_some(), Self::ENVIRONMENT);
         set(scene.environment.as_ref().is_some_and(|e| e.map.is_some()), Self::ENV_MAP);
@@ -184,6 +188,7 @@ impl FeatureKey {
         set(has(MaterialKind::Dielectric), Self::DIELECTRIC);
         set(has(MaterialKind::Emissive) || g.materials.iter().any(|m| m.is_light()), Self::EMISSIVE);
         set(has(MaterialKind::Pbr), Self::PBR);
+        set(g.alpha, Self::ALPHA);
         set(!g.triangle_attrs.is_empty(), Self::TEXTURES);
         set(!g.environment.is_empty(), Self::ENVIRONMENT);
         set(g.environment.iter().any(|e| e.flags & ENV_MAP != 0), Self::ENV_MAP);
@@ -210,7 +215,7 @@ impl FeatureKey {
         if self.has(Self::POINT_LIGHTS | Self::DIRECTIONAL_LIGHTS) {
             defs.insert("LIGHTS".into(), ShaderDefValue::Bool(true));
         }
-        if self.has(Self::DIELECTRIC | Self::EMISSIVE) {
+        if self.has(Self::DIELECTRIC | Self::EMISSIVE | Self::ALPHA) {
             defs.insert("SHADOW_CROSSING".into(), ShaderDefValue::Bool(true));
         }
         if self.has(Self::ENV_MAP) {
@@ -358,6 +363,8 @@ mod tests {
             | FeatureKey::DIELECTRIC;
         let skip = !met & ((1 << base) - 1);
         for assets in [
+            FeatureKey::PBR | FeatureKey::ALPHA | FeatureKey::TEXTURES,
+            FeatureKey::ALPHA,
             FeatureKey::PBR,
             FeatureKey::PBR | FeatureKey::TEXTURES,
             FeatureKey::TEXTURES,
@@ -491,6 +498,24 @@ mod tests {
         let quad =
             |material: &str| format!("[[objects]]\ntype = \"mesh\"\nfile = \"quad.obj\"\nmaterial = \"{material}\"\n");
         let light = "[[lights]]\ntype = \"point\"\nposition = [0.0, 3.0, 0.0]\nintensity = [5.0, 5.0, 5.0]\n";
+        // A glTF triangle whose material blends by alpha (TOML materials have no alpha).
+        let positions: Vec<u8> = [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+            .iter()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        use base64::Engine;
+        let data = base64::engine::general_purpose::STANDARD.encode(&positions);
+        let veil = format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+            "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "material": 0}}]}}],
+            "materials": [{{"pbrMetallicRoughness": {{"baseColorFactor": [1, 1, 1, 0.5]}}, "alphaMode": "BLEND"}}],
+            "buffers": [{{"uri": "data:application/octet-stream;base64,{data}", "byteLength": 36}}],
+            "bufferViews": [{{"buffer": 0, "byteLength": 36}}],
+            "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                "min": [0, 0, 0], "max": [1, 1, 0]}}]}}"#
+        );
+        std::fs::write(dir.join("veil.gltf"), veil).unwrap();
         let scenes = [
             (
                 "textured.toml",
@@ -514,6 +539,7 @@ mod tests {
                      radiance = [0.5, 0.5, 0.5]\n{sphere}{light}"
                 ),
             ),
+            ("alpha.toml", format!("{head}[[objects]]\ntype = \"gltf\"\nfile = \"veil.gltf\"\n{light}")),
             (
                 "emitters_only.toml",
                 format!(
@@ -751,7 +777,10 @@ mod tests {
                     metallic,
                     metal_rough_texture,
                     normal_texture,
-                    normal_scale
+                    normal_scale,
+                    alpha,
+                    alpha_cutoff,
+                    _pad
                 ]
             ),
             layout!("TextureInfo", GpuTexture, [width, height, offset, flags, linear, offset_uv, _pad]),
