@@ -19,7 +19,7 @@
 #import strahl::bindings::environment
 #import strahl::environment::env_sample
 #endif
-#import strahl::surface::surface
+#import strahl::surface::emission
 
 const TWO_PI: f32 = 6.28318530717959;
 
@@ -146,6 +146,6 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     }
     let pdf = area_pdf(m.radiance, d2, cos_l);
     // The emission texture at the sampled point (its density is that of the untextured radiance).
-    let radiance = surface(m, e.source, q, n).m.radiance;
+    let radiance = emission(m, e.source, q);
     return LightSample(dir, dist, radiance / pdf, pdf, true);
 }

@@ -135,6 +135,26 @@ fn look(texture: u32, tri: u32, w: vec3<f32>) -> vec4<f32> {
 }
 #endif
 
+// The radiance an area light of material m gives off at point p of primitive prim
+// (render::surface::emission).
+fn emission(m: Material, prim: u32, p: vec3<f32>) -> vec3<f32> {
+#ifdef TEXTURES
+#ifdef TRIANGLES
+    if m.radiance_texture != 0u && (prim >> INDEX_BITS) == KIND_TRIANGLE {
+        let i = prim & INDEX_MASK;
+#if TRIANGLE_PARTS > 1
+        let tri = scene_triangle(i);
+#else
+        let tri = triangles[i];
+#endif
+        let bc = barycentrics(tri.va, tri.vb, tri.vc, p);
+        return m.radiance * look(m.radiance_texture, i, vec3<f32>(1.0 - bc.x - bc.y, bc.x, bc.y)).xyz;
+    }
+#endif
+#endif
+    return m.radiance;
+}
+
 // Material m at point p of primitive prim, geometric normal n there (render::surface::surface).
 fn surface(m: Material, prim: u32, p: vec3<f32>, n: vec3<f32>) -> Surface {
     var s = Surface(m, n, m.alpha);

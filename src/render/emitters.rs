@@ -126,7 +126,7 @@ pub fn sample(g: &FlatScene, frame: &FrameParams, p: V3<f32>, u: [f32; 3]) -> Op
     let pdf = area_pdf(frame, m.radiance, d2, cos_l);
     // The emission texture at the sampled point (its density is that of the untextured
     // radiance, which both sampling and MIS use).
-    let radiance = V3::from_array(super::surface::surface(g, m, r, q, n).m.radiance);
+    let radiance = super::surface::emission(g, m, r, q);
     Some(LightSample { dir, dist, value: radiance / pdf, pdf })
 }
 

@@ -14,8 +14,8 @@
 
 use super::texture::{barycentrics, sample_rgba};
 use crate::gpu_types::{
-    ATTR_COLORS, ATTR_NORMALS, FlatScene, GpuMaterial, GpuTexture, MATERIAL_ALPHA_BLEND, MATERIAL_ALPHA_MASK,
-    MATERIAL_UNLIT, TEXTURE_UV1,
+    ATTR_COLORS, ATTR_NORMALS, FlatScene, GpuMaterial, GpuTexture, GpuTriangleAttrs, MATERIAL_ALPHA_BLEND,
+    MATERIAL_ALPHA_MASK, MATERIAL_UNLIT, TEXTURE_UV1,
 };
 use crate::math::V3;
 use crate::primitives::{PrimKind, PrimRef};
@@ -84,6 +84,34 @@ fn lerp_uv(uv: &[[f32; 2]; 3], w: [f32; 3]) -> [f32; 2] {
     [0, 1].map(|k| uv[0][k] * w[0] + uv[1][k] * w[1] + uv[2][k] * w[2])
 }
 
+/// Texture `texture` (1 + index; 0: none, then 1) at weights `w` of a triangle with attributes
+/// `a`, through the coordinates and transform of its use.
+#[inline]
+fn texture_at(g: &FlatScene, a: &GpuTriangleAttrs, texture: u32, w: [f32; 3]) -> [f32; 4] {
+    if texture == 0 {
+        return [1.0; 4];
+    }
+    let t = &g.textures[texture as usize - 1];
+    let uv = if t.flags & TEXTURE_UV1 != 0 { &a.second_uv } else { &a.uv };
+    let [u, v] = transformed(t, lerp_uv(uv, w));
+    sample_rgba(&g.texels, t, u, v)
+}
+
+/// The radiance an area light (an emissive or pbr material, not unlit) of material `m` gives
+/// off at point `p` of primitive `prim`: what [`surface`] gives as `m.radiance`, without the
+/// rest of its work (next-event estimation asks at every sampled light point).
+pub fn emission(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>) -> V3<f32> {
+    let radiance = V3::from_array(m.radiance);
+    if m.radiance_texture == 0 || prim.kind() != PrimKind::Triangle || g.triangle_attrs.is_empty() {
+        return radiance;
+    }
+    let i = prim.index();
+    let tri = &g.triangles[i];
+    let (beta, gamma) = barycentrics(V3::from_array(tri.va), V3::from_array(tri.vb), V3::from_array(tri.vc), p);
+    let r = texture_at(g, &g.triangle_attrs[i], m.radiance_texture, [1.0 - beta - gamma, beta, gamma]);
+    radiance.mul_elem(V3::new(r[0], r[1], r[2]))
+}
+
 /// Material `m` at the point `p` of primitive `prim`, whose geometric normal there is `n`.
 pub fn surface(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>, n: V3<f32>) -> Surface {
     let mut s = Surface { m: *m, normal: n, alpha: m.alpha };
@@ -97,14 +125,7 @@ pub fn surface(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>, n: V3<
     let w = [1.0 - beta - gamma, beta, gamma];
     let a = &g.triangle_attrs[i];
     let uv_set = |t: &GpuTexture| if t.flags & TEXTURE_UV1 != 0 { &a.second_uv } else { &a.uv };
-    let look = |texture: u32| -> [f32; 4] {
-        if texture == 0 {
-            return [1.0; 4];
-        }
-        let t = &g.textures[texture as usize - 1];
-        let [u, v] = transformed(t, lerp_uv(uv_set(t), w));
-        sample_rgba(&g.texels, t, u, v)
-    };
+    let look = |texture: u32| texture_at(g, a, texture, w);
     let mut vertex = V3::splat(1.0);
     let mut vertex_alpha = 1.0;
     if a.flags & ATTR_COLORS != 0 {

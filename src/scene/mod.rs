@@ -268,32 +268,6 @@ pub struct MeshAttributes {
     pub colors: Vec<[[f32; 4]; 3]>,
 }
 
-impl MeshAttributes {
-    /// Keeps triangle `i`'s attributes (in vertex order `order`) in `out`, for the lists
-    /// `self` has.
-    pub fn push_from(&self, out: &mut MeshAttributes, i: usize, order: [usize; 3]) {
-        fn pick<T: Copy>(v: &[[T; 3]], i: usize, o: [usize; 3]) -> [T; 3] {
-            [v[i][o[0]], v[i][o[1]], v[i][o[2]]]
-        }
-        if !self.uvs.is_empty() {
-            out.uvs.push(pick(&self.uvs, i, order));
-        }
-        if !self.uvs1.is_empty() {
-            out.uvs1.push(pick(&self.uvs1, i, order));
-        }
-        if !self.normals.is_empty() {
-            out.normals.push(pick(&self.normals, i, order));
-        }
-        if !self.colors.is_empty() {
-            out.colors.push(pick(&self.colors, i, order));
-        }
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.uvs.is_empty() && self.uvs1.is_empty() && self.normals.is_empty() && self.colors.is_empty()
-    }
-}
-
 impl Geometry {
     pub fn kind(&self) -> ObjectKind {
         match self {
