@@ -1,6 +1,6 @@
 //! BVH build time and nearest-hit traversal speed on the bumpy torus of the Embree anchor
 //! (`embree_bench.py`, the Embree 4 comparison): the same generator, the same sizes (250 × 200 quads =
-//! 100k triangles, 1000 × 500 = 1M) and the same two ray sets (`strahl::raysets`).
+//! 100k triangles, 1000 × 500 = 1M) and the same two ray sets (`strahl_core::raysets`).
 //!
 //! `cargo bench --bench bvh_build`. Groups:
 //! - `bvh_build/{100k,1M}`: `Bvh::build` and its collapse into the CPU's 8-wide tree
@@ -17,11 +17,11 @@ use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_
 use rayon::prelude::*;
 use std::hint::black_box;
 use std::time::Duration;
-use strahl::accel::{Bvh, WideBvh, wide_traverse};
-use strahl::math::{Ray, V3};
-use strahl::primitives::Primitives;
-use strahl::raysets;
-use strahl::scene::procedural::torus_scene;
+use strahl_core::accel::{Bvh, WideBvh, wide_traverse};
+use strahl_core::math::{Ray, V3};
+use strahl_core::primitives::Primitives;
+use strahl_core::raysets;
+use strahl_core::scene::procedural::torus_scene;
 
 const RAYS: usize = 100_000;
 

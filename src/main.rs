@@ -3,12 +3,12 @@
 mod cli;
 
 use clap::Parser;
-use strahl::backend::gpu::instance;
+use strahl_gpu::instance;
 
 fn main() {
     let args = cli::Cli::parse();
     // Only the viewer presents to a display; the rest keep Mesa's device-selection layer from
-    // connecting to one (strahl::backend::gpu::instance says why).
+    // connecting to one (strahl_gpu::instance says why).
     if !args.command.presents() && instance::should_disable_device_select(|v| std::env::var_os(v)) {
         let (name, value) = instance::DISABLE_DEVICE_SELECT;
         // SAFETY: the first statement after parsing the arguments, before any thread exists
@@ -20,7 +20,7 @@ fn main() {
         if let Some(usage) = e.downcast_ref::<clap::Error>() {
             usage.exit();
         }
-        eprintln!("error: {}", strahl::errors::chain(&e));
+        eprintln!("error: {}", strahl_core::errors::chain(&e));
         std::process::exit(1);
     }
 }

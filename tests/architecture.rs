@@ -10,24 +10,30 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// `src/...rs` paths in `text`, in order of first appearance.
+/// Rust source paths in `text` (`src/...rs` or `crates/NAME/src/...rs`), in order of first appearance.
 fn rust_paths(text: &str) -> BTreeSet<String> {
     let mut out = BTreeSet::new();
-    let mut rest = text;
-    while let Some(i) = rest.find("src/") {
-        let tail = &rest[i..];
+    let mut from = 0;
+    while let Some(i) = text[from..].find("src/").map(|i| i + from) {
+        let tail = &text[i..];
         let end =
             tail.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == '/' || c == '.')).unwrap_or(tail.len());
         let path = tail[..end].trim_end_matches('.');
-        if path.ends_with(".rs") {
-            out.insert(path.to_string());
+        // The crate folder in front, if the path is written from the repository root.
+        let head = &text[..i];
+        let start = head
+            .rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '/'))
+            .map_or(0, |j| j + head[j..].chars().next().map_or(1, char::len_utf8));
+        let prefix = &head[start..];
+        if path.ends_with(".rs") && (prefix.is_empty() || prefix.starts_with("crates/")) {
+            out.insert(format!("{prefix}{path}"));
         }
-        rest = &tail[4..];
+        from = i + 4;
     }
     out
 }
 
-/// Every `.wgsl` file under `shaders/`, as a path from the repository root.
+/// Every `.wgsl` file under `crates/gpu/shaders/`, as a path from the repository root.
 fn wgsl_files() -> Vec<String> {
     fn walk(dir: &Path, out: &mut Vec<String>) {
         for e in std::fs::read_dir(dir).unwrap() {
@@ -40,7 +46,7 @@ fn wgsl_files() -> Vec<String> {
         }
     }
     let mut v = Vec::new();
-    walk(&root().join("shaders"), &mut v);
+    walk(&root().join("crates/gpu/shaders"), &mut v);
     v.sort();
     v
 }
@@ -61,7 +67,7 @@ fn table() -> BTreeMap<String, (BTreeSet<String>, bool)> {
     let mut rows = BTreeMap::new();
     for line in text.lines() {
         let cells: Vec<&str> = line.split('|').map(str::trim).collect();
-        if cells.len() < 4 || !cells[1].starts_with("`shaders/") {
+        if cells.len() < 4 || !cells[1].starts_with("`crates/gpu/shaders/") {
             continue;
         }
         let wgsl = cells[1].trim_matches('`').to_string();
@@ -95,6 +101,9 @@ fn the_twin_table_matches_the_shader_headers_and_the_files_exist() {
 
 #[test]
 fn the_path_finder_reads_paths_as_written() {
-    let got = rust_paths("twin of src/render/path.rs (radiance) and src/accel/gpu_bvh.rs. Also src/x/.");
-    assert_eq!(got, BTreeSet::from(["src/accel/gpu_bvh.rs".to_string(), "src/render/path.rs".to_string()]));
+    let got = rust_paths(
+        "twin of crates/core/src/render/path.rs (radiance) and src/main.rs. Also src/x/, `crates/gpu/src/lib.rs`.",
+    );
+    let want = ["crates/core/src/render/path.rs", "crates/gpu/src/lib.rs", "src/main.rs"];
+    assert_eq!(got, want.iter().map(|s| s.to_string()).collect::<BTreeSet<_>>());
 }

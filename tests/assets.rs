@@ -7,12 +7,12 @@ mod common;
 use common::{cpu_path_image, gpu, gpu_path_image, mean_and_error};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use strahl::backend::cpu;
-use strahl::backend::gpu::{GpuContext, SceneBuffers, render::render};
-use strahl::image::Image;
-use strahl::render::Prepared;
-use strahl::scene::texture::srgb_to_linear;
-use strahl::scene::{EnvSampling, RenderMode, Scene};
+use strahl_core::cpu;
+use strahl_core::image::Image;
+use strahl_core::render::Prepared;
+use strahl_core::scene::texture::srgb_to_linear;
+use strahl_core::scene::{EnvSampling, RenderMode, Scene};
+use strahl_gpu::{GpuContext, SceneBuffers, render};
 
 // ---------------------------------------------------------------------------------------
 // Asset writers.
@@ -221,7 +221,7 @@ fn gltf_and_glb_textures_land_where_the_uvs_say_on_both_backends() {
         if let Some(ctx) = &ctx {
             let gpu_img = gpu_whitted(ctx, &prep, 96, 96);
             check_quadrants(&format!("{} on the gpu", path.display()), &gpu_img);
-            let a = strahl::metrics::agreement(&cpu_img, &gpu_img, 1);
+            let a = strahl_metrics::agreement(&cpu_img, &gpu_img, 1);
             assert!(a.within_tolerance >= 0.999, "{}: {a:?}", path.display());
         }
     }
@@ -238,12 +238,12 @@ fn textured_path_traced_images_match_on_both_backends() {
     let mut scene = Scene::load(&path).unwrap();
     // Bilinear instead of nearest, and a constant sky as well: textures and environment.
     scene.textures[0].nearest = false;
-    scene.environment = Some(strahl::scene::Environment::constant([0.2, 0.3, 0.4]));
+    scene.environment = Some(strahl_core::scene::Environment::constant([0.2, 0.3, 0.4]));
     let prep = Arc::new(Prepared::new(scene));
     let frame = prep.frame(48, 48);
     let c = cpu_path_image(&prep, frame, 8);
     let g = gpu_path_image(&ctx, &prep, frame, 8);
-    let a = strahl::metrics::agreement(&c, &g, 1);
+    let a = strahl_metrics::agreement(&c, &g, 1);
     eprintln!("textured quad, path, 8 spp: {a:?}");
     assert!(a.within_tolerance >= 0.99, "{a:?}");
     assert!(a.mean_flip < 0.005, "{a:?}");
@@ -539,7 +539,7 @@ fn gltf_files_the_specification_allows_load() {
         .objects
         .iter()
         .flat_map(|o| match &o.geometry {
-            strahl::scene::Geometry::Mesh { attrs, .. } => attrs.uvs.clone(),
+            strahl_core::scene::Geometry::Mesh { attrs, .. } => attrs.uvs.clone(),
             _ => Vec::new(),
         })
         .collect();

@@ -4,8 +4,8 @@ mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use strahl::backend::gpu::instance;
-use strahl::backend::select::Workload;
+use strahl_gpu::instance;
+use strahl_gpu::select::Workload;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

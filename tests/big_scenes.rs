@@ -2,23 +2,23 @@
 //! brute-force hits at 5M triangles and renders them; the GPU renders and traces the scene as
 //! the CPU does, its arrays split across storage bindings where they exceed one (lavapipe:
 //! 128 MiB). What no split holds is refused before allocation: tests/gpu_limits.rs and
-//! src/backend/gpu/split.rs.
+//! crates/gpu/src/split.rs.
 
 mod common;
 
 use common::gpu;
 use rayon::prelude::*;
-use strahl::accel::wide_traverse;
-use strahl::backend::cpu;
-use strahl::backend::gpu::split::SplitArray;
-use strahl::backend::gpu::{GpuContext, SceneBuffers, render::render, trace::trace};
-use strahl::image::Image;
-use strahl::primitives::Hit;
-use strahl::query::RayQuery;
-use strahl::render::Prepared;
-use strahl::render::camera::primary_ray;
-use strahl::scene::RenderMode;
-use strahl::scene::procedural::torus_scene;
+use strahl_core::accel::wide_traverse;
+use strahl_core::cpu;
+use strahl_core::image::Image;
+use strahl_core::primitives::Hit;
+use strahl_core::query::RayQuery;
+use strahl_core::render::Prepared;
+use strahl_core::render::camera::primary_ray;
+use strahl_core::scene::RenderMode;
+use strahl_core::scene::procedural::torus_scene;
+use strahl_gpu::split::SplitArray;
+use strahl_gpu::{GpuContext, SceneBuffers, render, trace::trace};
 
 #[test]
 fn five_million_triangles_hit_as_brute_force_and_render_on_cpu_and_gpu() {
@@ -101,6 +101,6 @@ fn five_million_triangles_hit_as_brute_force_and_render_on_cpu_and_gpu() {
 fn assert_gpu_renders_as_cpu(ctx: &GpuContext, prep: &Prepared, buffers: &SceneBuffers, cpu_image: &Image) {
     let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
     let (gpu_image, _) = render(ctx, buffers, &frame, RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
-    let a = strahl::metrics::agreement(cpu_image, &gpu_image, 1);
+    let a = strahl_metrics::agreement(cpu_image, &gpu_image, 1);
     assert!(a.within_tolerance >= 0.999 && a.mean_flip < 0.005, "{} triangles: {a:?}", prep.prims.triangles.len());
 }

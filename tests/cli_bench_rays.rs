@@ -10,14 +10,14 @@ fn strahl(args: &[&str]) -> Output {
 
 /// Writes the bumpy torus of 2·nu·nv triangles and a camera file as the anchor script does.
 fn export(dir: &Path, nu: usize, nv: usize) -> std::path::PathBuf {
-    let (v, f) = strahl::scene::mesh::bumpy_torus(nu, nv, 2.0, 0.8);
+    let (v, f) = strahl_core::scene::mesh::bumpy_torus(nu, nv, 2.0, 0.8);
     let obj = dir.join(format!("bumpy_torus_{}.obj", 2 * nu * nv));
     let mut buf = Vec::new();
-    strahl::scene::mesh::write_obj(&mut buf, &v, &f).unwrap();
+    strahl_core::scene::mesh::write_obj(&mut buf, &v, &f).unwrap();
     std::fs::write(&obj, buf).unwrap();
     let camera = r#"{"eye": [1.7, 4.5, -5.7], "look_at": [0.0, 0.0, 0.0], "up": [0, 1, 0],
         "fov_x_deg": 30.0, "aspect_w_over_h": 1.3333333333333333, "note": "pinhole"}"#;
-    std::fs::write(strahl::scene::procedural::camera_file(&obj), camera).unwrap();
+    std::fs::write(strahl_core::scene::procedural::camera_file(&obj), camera).unwrap();
     obj
 }
 
@@ -67,7 +67,7 @@ fn obj_with_camera_file_reports_camera_and_random_rays() {
 fn scene_files_use_their_camera_and_image() {
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/seed.toml");
     let r = json(&strahl(&["bench", "rays", scene, "--json", "--reps", "1"]));
-    let s = strahl::scene::Scene::load(scene).unwrap();
+    let s = strahl_core::scene::Scene::load(scene).unwrap();
     assert_eq!(r["rays"].as_u64().unwrap(), s.image.width as u64 * s.image.height as u64);
     assert_eq!(r["triangles"].as_u64().unwrap(), s.triangle_count() as u64);
     let text = strahl(&["bench", "rays", scene, "--reps", "1", "--count", "1000"]);
@@ -84,7 +84,7 @@ fn bad_input_is_named() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("nope.obj") && err.contains("cannot open"), "{err}");
     let obj = export(dir.path(), 8, 6);
-    std::fs::write(strahl::scene::procedural::camera_file(&obj), "{\"eye\": [0, 0]}").unwrap();
+    std::fs::write(strahl_core::scene::procedural::camera_file(&obj), "{\"eye\": [0, 0]}").unwrap();
     let out = strahl(&["bench", "rays", obj.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);

@@ -5,7 +5,7 @@
 //!
 //! A full disk is a small tmpfs, mounted where the tests run as root (CI does); elsewhere
 //! those tests record a skip (`common::skip`) and return. The writer-error test of
-//! `strahl::output` always runs.
+//! `strahl_core::output` always runs.
 
 mod common;
 

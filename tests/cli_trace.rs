@@ -9,9 +9,9 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use strahl::rng::SplitMix64;
+use strahl_core::rng::SplitMix64;
 
-/// The hits CSV header (`strahl::query::HITS_HEADER`), spelled out: it is a file format.
+/// The hits CSV header (`strahl_core::query::HITS_HEADER`), spelled out: it is a file format.
 const HEADER: &str = "ray,t,x,y,z,nx,ny,nz,object,prim,enter";
 
 fn root() -> PathBuf {

@@ -40,7 +40,7 @@ const FLAGS: [&str; 10] = ["--backend", "cpu", "--mode", "path", "--spp", "2", "
 
 /// Every pixel's channels as bits, so that -0.0 and 0.0 are told apart.
 fn bits(p: &Path) -> Vec<[u32; 3]> {
-    strahl::image::read_exr(p).unwrap().image.pixels.iter().map(|px| px.map(f32::to_bits)).collect()
+    strahl_core::image::read_exr(p).unwrap().image.pixels.iter().map(|px| px.map(f32::to_bits)).collect()
 }
 
 /// The whole image rendered at once with `flags`, as bits.

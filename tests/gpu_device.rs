@@ -6,9 +6,9 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::{Arc, Barrier};
-use strahl::backend::gpu::{FeatureKey, Program, SceneBuffers};
-use strahl::render::Prepared;
-use strahl::scene::Scene;
+use strahl_core::render::Prepared;
+use strahl_core::scene::Scene;
+use strahl_gpu::{FeatureKey, Program, SceneBuffers};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -65,7 +65,7 @@ fn copy_shaders(dir: &Path) -> PathBuf {
     let copy = dir.join("shaders");
     std::fs::create_dir_all(copy.join("modules")).unwrap();
     for sub in ["", "modules"] {
-        for e in std::fs::read_dir(root().join("shaders").join(sub)).unwrap() {
+        for e in std::fs::read_dir(root().join("crates/gpu/shaders").join(sub)).unwrap() {
             let p = e.unwrap().path();
             if p.is_file() {
                 std::fs::copy(&p, copy.join(sub).join(p.file_name().unwrap())).unwrap();
@@ -79,7 +79,7 @@ fn copy_shaders(dir: &Path) -> PathBuf {
 /// accepts the module, the device refuses the pipeline.
 fn shaders_with_an_unbound_buffer(dir: &Path) -> PathBuf {
     let copy = copy_shaders(dir);
-    let render = copy.join("render.wgsl");
+    let render = copy.join("whitted.wgsl");
     let text = std::fs::read_to_string(&render).unwrap();
     let text = text
         .replace(
@@ -91,7 +91,7 @@ fn shaders_with_an_unbound_buffer(dir: &Path) -> PathBuf {
             "    let sum = shade_pixel_sum(px.x, px.y);",
             "    stray[0] = 1u;\n    let sum = shade_pixel_sum(px.x, px.y);",
         );
-    assert!(text.contains("stray[0]"), "render.wgsl changed: update this test");
+    assert!(text.contains("stray[0]"), "whitted.wgsl changed: update this test");
     std::fs::write(&render, text).unwrap();
     copy
 }

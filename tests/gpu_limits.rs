@@ -7,14 +7,14 @@ mod common;
 
 use common::{Rng, gpu};
 use std::sync::Arc;
-use strahl::backend::gpu::render::{PathAccumulator, render};
-use strahl::backend::gpu::split::SplitArray;
-use strahl::backend::gpu::trace::trace;
-use strahl::backend::gpu::{GpuContext, GpuError, PathKernels, SceneBuffers};
-use strahl::math::V3;
-use strahl::query::RayQuery;
-use strahl::render::Prepared;
-use strahl::scene::{RenderMode, Scene};
+use strahl_core::math::V3;
+use strahl_core::query::RayQuery;
+use strahl_core::render::Prepared;
+use strahl_core::scene::{RenderMode, Scene};
+use strahl_gpu::split::SplitArray;
+use strahl_gpu::tiles::{PathAccumulator, render};
+use strahl_gpu::trace::trace;
+use strahl_gpu::{GpuContext, GpuError, PathKernels, SceneBuffers};
 
 fn scene(name: &str) -> Prepared {
     Prepared::new(Scene::load(format!("{}/assets/scenes/{name}", env!("CARGO_MANIFEST_DIR"))).unwrap())
@@ -61,7 +61,7 @@ fn rays(prep: &Prepared) -> Vec<RayQuery> {
     let mut rays: Vec<RayQuery> = (0..120 * 160)
         .step_by(9)
         .map(|i| {
-            let r = strahl::render::camera::primary_ray(&frame, i % 160, i / 160, 0);
+            let r = strahl_core::render::camera::primary_ray(&frame, i % 160, i / 160, 0);
             RayQuery { origin: r.origin.to_f64(), dir: r.dir.to_f64(), tmin: 0.0, tmax: f64::INFINITY }
         })
         .collect();
@@ -87,7 +87,7 @@ fn arrays_split_across_bindings_are_read_as_if_whole() {
     let Some(whole_ctx) = gpu() else { return };
     let whole_ctx = Arc::new(whole_ctx);
     let torus = {
-        let mut s = strahl::scene::procedural::torus_scene(80_000);
+        let mut s = strahl_core::scene::procedural::torus_scene(80_000);
         s.image.width = 160;
         s.image.height = 120;
         Prepared::new(s)
@@ -136,16 +136,17 @@ fn images_taller_than_one_binding_render_in_seamless_bands() {
     let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
     let (whole, one) =
-        render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
+        render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
     // Room for 37 rows per output binding: the image needs several bands, none tile-aligned.
     ctx.limits.max_storage_buffer_binding_size = frame.width as u64 * 16 * 37;
     let (banded, many) =
-        render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
+        render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
     assert!(many.dispatches > one.dispatches, "{} vs {} dispatches", many.dispatches, one.dispatches);
     assert_eq!(whole, banded, "bands must join into the same image");
     // One row that does not fit is a clear error, not a crash.
     ctx.limits.max_storage_buffer_binding_size = 64;
-    let err = render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap_err();
+    let err =
+        render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap_err();
     assert!(matches!(err, GpuError::TooLarge { .. }), "{err}");
 }
 

@@ -7,9 +7,9 @@ mod common;
 
 use std::path::Path;
 use std::sync::Arc;
-use strahl::backend::gpu::{SceneBuffers, render};
-use strahl::render::Prepared;
-use strahl::scene::{RenderMode, Scene};
+use strahl_core::render::Prepared;
+use strahl_core::scene::{RenderMode, Scene};
+use strahl_gpu::{PathAccumulator, SceneBuffers, render};
 
 /// Resident set size of this process in KiB (Linux).
 fn rss_kib() -> u64 {
@@ -33,7 +33,7 @@ fn memory_stays_flat_over_thousands_of_sample_passes() {
     // Progressive path tracing (the viewer's and converge's passes): 1024 passes measured
     // after a warm-up that compiles the pipeline and fills the allocators.
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
-    let mut p = render::PathAccumulator::new(ctx.clone(), buffers, frame).unwrap();
+    let mut p = PathAccumulator::new(ctx.clone(), buffers, frame).unwrap();
     p.add_samples(64).unwrap();
     let before = rss_kib();
     for _ in 0..16 {
@@ -47,8 +47,8 @@ fn memory_stays_flat_over_thousands_of_sample_passes() {
     // `strahl render` in Whitted mode: one sample pass per sample, with timestamp queries.
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
     let whitted = |spp: u32| {
-        let f = strahl::gpu_types::FrameParams { spp, ..frame };
-        render::render(&ctx, &buffers, &f, RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap()
+        let f = strahl_core::layout::FrameParams { spp, ..frame };
+        render(&ctx, &buffers, &f, RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap()
     };
     whitted(64);
     let before = rss_kib();

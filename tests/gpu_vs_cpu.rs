@@ -4,13 +4,13 @@
 mod common;
 
 use common::{Rng, gpu, shipped_scenes};
-use strahl::backend::cpu;
-use strahl::backend::gpu::{GpuContext, SceneBuffers, render::render, trace::trace};
-use strahl::math::V3;
-use strahl::primitives::Hit;
-use strahl::query::RayQuery;
-use strahl::render::{Prepared, camera::primary_ray};
-use strahl::scene::Scene;
+use strahl_core::cpu;
+use strahl_core::math::V3;
+use strahl_core::primitives::Hit;
+use strahl_core::query::RayQuery;
+use strahl_core::render::{Prepared, camera::primary_ray};
+use strahl_core::scene::Scene;
+use strahl_gpu::{GpuContext, SceneBuffers, render, trace::trace};
 
 /// Camera rays through random sub-pixel positions, and random rays from around the scene
 /// towards random points of its bounds.
@@ -139,7 +139,7 @@ fn zero_size_results_read_back_from_every_kernel() {
         assert_eq!(got, cpu::trace::<f32>(&scene, &[miss, miss], all), "all = {all}");
         assert_eq!(got, vec![Vec::new(), Vec::new()]);
     }
-    let spawn = strahl::backend::gpu::trace::trace_spawn(&ctx, &buffers, &[]).unwrap();
+    let spawn = strahl_gpu::trace::trace_spawn(&ctx, &buffers, &[]).unwrap();
     assert!(spawn.is_empty());
 }
 
@@ -219,12 +219,12 @@ fn gpu_images_match_cpu_on_every_shipped_scene() {
     for path in shipped_scenes() {
         let prep = Prepared::new(Scene::load(&path).unwrap());
         let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
-        let want = cpu::render(&prep, &frame, strahl::scene::RenderMode::Whitted, &|_| {});
+        let want = cpu::render(&prep, &frame, strahl_core::scene::RenderMode::Whitted, &|_| {});
         let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
         let (got, _) =
-            render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
+            render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
         assert_eq!(got.non_finite_count(), 0, "{}", path.display());
-        let a = strahl::metrics::agreement(&want, &got, 1);
+        let a = strahl_metrics::agreement(&want, &got, 1);
         eprintln!("{}: {:?}", path.display(), a);
         assert!(a.within_tolerance >= 0.999, "{}: {a:?}", path.display());
         assert!(a.mean_flip < 0.005, "{}: {a:?}", path.display());
@@ -235,7 +235,7 @@ fn gpu_images_match_cpu_on_every_shipped_scene() {
 /// rounding: leaving code out changes nothing else.
 #[test]
 fn all_features_shader_agrees_with_the_specialised_one() {
-    use strahl::backend::gpu::FeatureKey;
+    use strahl_gpu::FeatureKey;
     let Some(ctx) = gpu() else { return };
     for name in ["sphere.toml", "polygon.toml"] {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes").join(name);
@@ -244,10 +244,11 @@ fn all_features_shader_agrees_with_the_specialised_one() {
         let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
         assert_ne!(buffers.key, FeatureKey::ALL);
         let (a, _) =
-            render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
+            render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
         let (b, _) =
-            render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, FeatureKey::ALL, &|_, _| {}).unwrap();
-        let agree = strahl::metrics::agreement(&a, &b, 1);
+            render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, FeatureKey::ALL, &|_, _| {})
+                .unwrap();
+        let agree = strahl_metrics::agreement(&a, &b, 1);
         assert!(agree.within_tolerance >= 0.999, "{name}: {agree:?}");
     }
 }
@@ -261,9 +262,9 @@ fn all_features_shader_agrees_with_the_specialised_one() {
 #[test]
 fn a_tree_at_the_depth_bound_is_walked_alike_on_both_backends() {
     let Some(ctx) = gpu() else { return };
-    let scene = strahl::scene::procedural::deep_chain_scene(43, 300, 48, 36);
+    let scene = strahl_core::scene::procedural::deep_chain_scene(43, 300, 48, 36);
     let prep = Prepared::new(scene.clone());
-    assert_eq!(prep.bvh.depth, strahl::accel::bvh::MAX_DEPTH, "the test needs a tree at the bound");
+    assert_eq!(prep.bvh.depth, strahl_core::accel::bvh::MAX_DEPTH, "the test needs a tree at the bound");
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
     let mut rng = Rng(23);
     let rays: Vec<RayQuery> = (0..400)
@@ -305,8 +306,8 @@ fn a_tree_at_the_depth_bound_is_walked_alike_on_both_backends() {
     // The images render without a NaN; they are not compared, as the coplanar triangles shadow
     // each other where rounding decides.
     let frame = prep.frame(48, 36);
-    let cpu_image = cpu::render(&prep, &frame, strahl::scene::RenderMode::Whitted, &|_| {});
+    let cpu_image = cpu::render(&prep, &frame, strahl_core::scene::RenderMode::Whitted, &|_| {});
     let (gpu_image, _) =
-        render(&ctx, &buffers, &frame, strahl::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
+        render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
     assert_eq!((cpu_image.non_finite_count(), gpu_image.non_finite_count()), (0, 0));
 }

@@ -10,11 +10,11 @@ mod common;
 use common::{cpu_path_image, gpu, gpu_path_image};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use strahl::backend::cpu;
-use strahl::backend::gpu::{GpuContext, SceneBuffers, render::render};
-use strahl::image::Image;
-use strahl::render::Prepared;
-use strahl::scene::{RenderMode, Scene};
+use strahl_core::cpu;
+use strahl_core::image::Image;
+use strahl_core::render::Prepared;
+use strahl_core::scene::{RenderMode, Scene};
+use strahl_gpu::{GpuContext, SceneBuffers, render};
 
 /// One primitive's vertex data; the quad's unless changed.
 #[derive(Clone)]
@@ -200,7 +200,7 @@ fn pixels(img: &Image) -> Vec<[f32; 3]> {
 
 /// The image of `ctx`'s backend agrees with the CPU's.
 fn assert_backends_agree(what: &str, cpu_img: &Image, gpu_img: &Image) {
-    let a = strahl::metrics::agreement(cpu_img, gpu_img, 1);
+    let a = strahl_metrics::agreement(cpu_img, gpu_img, 1);
     eprintln!("{what}: {a:?}");
     assert!(a.within_tolerance >= 0.99, "{what}: {a:?}");
 }
@@ -402,7 +402,7 @@ fn second_texture_coordinates_and_transforms_read_where_they_say() {
         &image,
         None,
     );
-    let linear = |k: usize| QUADRANTS[k].map(strahl::scene::texture::srgb_to_linear);
+    let linear = |k: usize| QUADRANTS[k].map(strahl_core::scene::texture::srgb_to_linear);
     let ctx = gpu();
     let render = |p: &Path| {
         let prep = prepared(p);
@@ -461,7 +461,7 @@ fn every_material_path_agrees_on_both_backends() {
     ];
     let file = write_gltf(dir.path(), "all.gltf", &mesh, material, &images, Some([0.3, -0.5, -1.0]));
     let mut scene = Scene::load(&file).unwrap_or_else(|e| panic!("{e}"));
-    scene.environment = Some(strahl::scene::Environment::constant([0.3, 0.35, 0.4]));
+    scene.environment = Some(strahl_core::scene::Environment::constant([0.3, 0.35, 0.4]));
     scene.render.ambient = [0.0; 3];
     let prep = Arc::new(Prepared::new(scene));
     assert!(!prep.gpu.triangle_attrs.is_empty());

@@ -6,12 +6,12 @@ mod common;
 use common::gpu;
 use std::path::Path;
 use std::sync::Arc;
-use strahl::backend::cpu;
-use strahl::backend::gpu::{GpuContext, SceneBuffers, render::PathAccumulator};
-use strahl::gpu_types::FrameParams;
-use strahl::image::{Image, Region};
-use strahl::render::Prepared;
-use strahl::scene::{RenderMode, Scene, file::parse};
+use strahl_core::cpu;
+use strahl_core::image::{Image, Region};
+use strahl_core::layout::FrameParams;
+use strahl_core::render::Prepared;
+use strahl_core::scene::{RenderMode, Scene, file::parse};
+use strahl_gpu::{GpuContext, PathAccumulator, SceneBuffers};
 
 fn scene(src: &str) -> Scene {
     parse(src, Path::new("test.toml"), Path::new(".")).unwrap_or_else(|e| panic!("{e}"))
@@ -369,7 +369,7 @@ fn wavefront_and_megakernel_render_the_same_image() {
 }
 
 fn assert_wavefront_is_megakernel(ctx: &Arc<GpuContext>, prep: &Prepared, frame: FrameParams, what: &str) {
-    use strahl::backend::gpu::{PathKernels, render::render_tiles, wavefront::Wavefront};
+    use strahl_gpu::{PathKernels, render_tiles, wavefront::Wavefront};
     let same = |how: &str, a: &Image, b: &Image| {
         assert_eq!(a.non_finite_count(), 0, "{what}, {how}");
         let differing = a.pixels.iter().zip(&b.pixels).filter(|(x, y)| x != y).count();

@@ -6,11 +6,12 @@
 mod common;
 
 use std::path::Path;
-use strahl::backend::{cpu, gpu};
-use strahl::image::Image;
-use strahl::render::Prepared;
-use strahl::scene::{RenderMode, Scene};
 use strahl::stiff::cases::{pixels_off_by_more_than, scaled};
+use strahl_core::cpu;
+use strahl_core::image::Image;
+use strahl_core::render::Prepared;
+use strahl_core::scene::{RenderMode, Scene};
+use strahl_gpu as gpu;
 
 /// Large enough to resolve the glass sphere, the red sphere inside it, the shadows and the
 /// torus; small enough to be quick.
@@ -33,7 +34,7 @@ fn render(scene: Scene, mode: RenderMode, spp: u32, ctx: Option<&gpu::GpuContext
         None => cpu::render(&prep, &frame, mode, &|_| {}),
         Some(ctx) => {
             let b = gpu::SceneBuffers::upload(ctx, &prep.gpu).unwrap();
-            gpu::render::render(ctx, &b, &frame, mode, b.key, &|_, _| {}).unwrap().0
+            gpu::tiles::render(ctx, &b, &frame, mode, b.key, &|_, _| {}).unwrap().0
         }
     };
     assert_eq!(img.non_finite_count(), 0);

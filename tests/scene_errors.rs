@@ -3,7 +3,7 @@
 //! shipped in assets/scenes/ must load.
 
 use std::path::{Path, PathBuf};
-use strahl::scene::{Geometry, Scene, SceneError};
+use strahl_core::scene::{Geometry, Scene, SceneError};
 
 /// Paths relative to the package root (the working directory of `cargo test`), so that the
 /// paths inside messages are short and predictable.
@@ -65,7 +65,7 @@ const HEAD: &str = "[camera]\neye = [0, 0, -10]\nlook_at = [0, 0, 0]\nup = [0, 1
 fn too_many_lights_and_materials() {
     let p = Path::new("big.toml");
     let lights = "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\n".repeat(1025);
-    let e = strahl::scene::file::parse(&format!("{HEAD}{lights}"), p, Path::new(".")).unwrap_err();
+    let e = strahl_core::scene::file::parse(&format!("{HEAD}{lights}"), p, Path::new(".")).unwrap_err();
     assert!(matches!(e, SceneError::TooLarge { .. }), "{e}");
     assert_eq!(
         e.to_string(),
@@ -73,7 +73,7 @@ fn too_many_lights_and_materials() {
     );
 
     let mats: String = (0..4097).map(|i| format!("[[materials]]\nname = \"m{i}\"\ntype = \"diffuse\"\n")).collect();
-    let e = strahl::scene::file::parse(&format!("{HEAD}{mats}"), p, Path::new(".")).unwrap_err();
+    let e = strahl_core::scene::file::parse(&format!("{HEAD}{mats}"), p, Path::new(".")).unwrap_err();
     assert_eq!(
         e.to_string(),
         "big.toml: too many materials: more than 4096 ([[materials]] table number 4097 is on line 12297)"
@@ -86,7 +86,7 @@ fn too_many_lights_and_materials() {
 fn too_many_object_tables_are_refused_before_parsing() {
     let p = Path::new("big.toml");
     let objs = "[[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n".repeat(1_000_001);
-    let e = strahl::scene::file::parse(&format!("{HEAD}{objs}"), p, Path::new(".")).unwrap_err();
+    let e = strahl_core::scene::file::parse(&format!("{HEAD}{objs}"), p, Path::new(".")).unwrap_err();
     assert!(matches!(e, SceneError::TooLarge { .. }), "{e}");
     assert_eq!(
         e.to_string(),
@@ -100,7 +100,7 @@ fn too_many_object_tables_are_refused_before_parsing() {
 fn too_many_objects() {
     let p = Path::new("big.toml");
     let objs = "objects = [".to_string() + &"{type=\"sphere\",center=[0,0,0],radius=1},".repeat(1_000_001) + "]\n";
-    let e = strahl::scene::file::parse(&format!("{objs}{HEAD}"), p, Path::new(".")).unwrap_err();
+    let e = strahl_core::scene::file::parse(&format!("{objs}{HEAD}"), p, Path::new(".")).unwrap_err();
     assert_eq!(e.to_string(), "big.toml: too many objects: 1000001 (at most 1000000)");
 }
 
@@ -112,7 +112,7 @@ fn all_shipped_scenes_load() {
         let s = Scene::load(path).unwrap_or_else(|e| panic!("{e}"));
         assert!(!s.objects.is_empty(), "{}", path.display());
         // Lit by a light or by an emissive material (an area light).
-        let emissive = s.materials.iter().any(|m| m.kind == strahl::scene::MaterialKind::Emissive);
+        let emissive = s.materials.iter().any(|m| m.kind == strahl_core::scene::MaterialKind::Emissive);
         assert!(!s.lights.is_empty() || emissive, "{}", path.display());
         let name = path.file_stem().unwrap().to_str().unwrap();
         // The lecture, the seed and the benchmark scenes keep the full 640x480 frame.
@@ -167,7 +167,7 @@ fn shipped_cube_faces_outward() {
     let Geometry::Mesh { triangles, .. } = &s.objects[0].geometry else { panic!() };
     assert_eq!(triangles.len(), 12);
     let n = 36.0;
-    let c = triangles.iter().flat_map(|t| t.v).fold(strahl::math::V3::zero(), |a, v| a + v / n);
+    let c = triangles.iter().flat_map(|t| t.v).fold(strahl_core::math::V3::zero(), |a, v| a + v / n);
     for t in triangles {
         let centroid = (t.v[0] + t.v[1] + t.v[2]) / 3.0;
         assert!(t.face_normal().dot(centroid - c) > 0.0, "{t:?}");

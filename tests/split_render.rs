@@ -7,7 +7,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
-use strahl::image::{Region, read_exr, read_exr_placement};
+use strahl_core::image::{Region, read_exr, read_exr_placement};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -182,7 +182,7 @@ fn merge_refuses_overlapping_missing_and_mismatched_parts() {
     assert!(!out.exists(), "a refused merge writes nothing");
 
     // A part is not a whole image: reading it as one says what to do.
-    let err = strahl::image::Image::load(&top).unwrap_err().to_string();
+    let err = strahl_core::image::Image::load(&top).unwrap_err().to_string();
     assert!(err.contains("strahl merge"), "{err}");
 }
 

@@ -6,9 +6,9 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-use strahl::backend::gpu::{SceneBuffers, render::render};
-use strahl::render::Prepared;
-use strahl::scene::Scene;
+use strahl_core::render::Prepared;
+use strahl_core::scene::Scene;
+use strahl_gpu::{SceneBuffers, render};
 
 const TIMEOUT: Duration = Duration::from_secs(120);
 
@@ -62,17 +62,17 @@ fn run_viewer(dir: &Path, args: &[&str]) -> (bool, String, String) {
 
 #[test]
 fn the_window_shows_the_rendered_scene_beside_the_side_panel() {
-    window_matches_the_library(strahl::scene::RenderMode::Whitted);
+    window_matches_the_library(strahl_core::scene::RenderMode::Whitted);
 }
 
 #[test]
 fn the_path_mode_window_shows_the_path_traced_samples_of_the_library() {
-    window_matches_the_library(strahl::scene::RenderMode::Path);
+    window_matches_the_library(strahl_core::scene::RenderMode::Path);
 }
 
 /// Runs the viewer for three frames in `mode` and compares its screenshot with the library's
 /// render of the same samples; checks the side panel too.
-fn window_matches_the_library(mode: strahl::scene::RenderMode) {
+fn window_matches_the_library(mode: strahl_core::scene::RenderMode) {
     if !on_path("xvfb-run") {
         if common::gpu_tests_may_skip() {
             common::skip("xvfb-run not found");

@@ -24,13 +24,13 @@ use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use strahl::backend::gpu::render::{PathAccumulator, render, render_tiles};
-use strahl::backend::gpu::wavefront::Wavefront;
-use strahl::backend::gpu::{FeatureKey, GpuContext, PathKernels, SceneBuffers};
-use strahl::gpu_types::FrameParams;
-use strahl::image::Region;
-use strahl::render::Prepared;
-use strahl::scene::{RenderMode, Scene};
+use strahl_core::image::Region;
+use strahl_core::layout::FrameParams;
+use strahl_core::render::Prepared;
+use strahl_core::scene::{RenderMode, Scene};
+use strahl_gpu::tiles::{PathAccumulator, render, render_tiles};
+use strahl_gpu::wavefront::Wavefront;
+use strahl_gpu::{FeatureKey, GpuContext, PathKernels, SceneBuffers};
 
 /// The scenes measured when none are named, in the repository's `assets/scenes`.
 const DEFAULT_SCENES: [&str; 2] = ["seed.toml", "spheres.toml"];
@@ -266,7 +266,7 @@ fn bench_whitted(
             first_dispatch(ctx, buffers, prep, key)?;
             gpu.push(json!({
                 "variant": variant,
-                "features": ctx.variant(strahl::backend::gpu::Program::Render, key).label(),
+                "features": ctx.variant(strahl_gpu::Program::Whitted, key).label(),
                 "compile_s": compile,
             }));
             let frame = &frame;
@@ -278,7 +278,7 @@ fn bench_whitted(
         }
     }
     rows.push(Box::new(|| {
-        strahl::backend::cpu::render(prep, &frame, RenderMode::Whitted, &|_| {});
+        strahl_core::cpu::render(prep, &frame, RenderMode::Whitted, &|_| {});
         Ok(())
     }));
     let walls = median_times(a.frames, &mut rows)?;
@@ -352,7 +352,7 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
         }
     }
     rows.push(Box::new(|| {
-        strahl::backend::cpu::render(prep, &frame, RenderMode::Path, &|_| {});
+        strahl_core::cpu::render(prep, &frame, RenderMode::Path, &|_| {});
         Ok(())
     }));
     let walls = median_times(a.frames, &mut rows)?;

@@ -7,11 +7,11 @@ use clap::{Args, ValueEnum};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-use strahl::accel::{Bvh, WideBvh, wide_traverse};
-use strahl::math::{Ray, V3};
-use strahl::primitives::Primitives;
-use strahl::raysets;
-use strahl::scene::Scene;
+use strahl_core::accel::{Bvh, WideBvh, wide_traverse};
+use strahl_core::math::{Ray, V3};
+use strahl_core::primitives::Primitives;
+use strahl_core::raysets;
+use strahl_core::scene::Scene;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum RaySet {
@@ -22,7 +22,7 @@ pub enum RaySet {
 }
 
 /// Most rays one run casts (the largest image strahl renders).
-const MAX_RAYS: u64 = strahl::scene::file::MAX_IMAGE_PIXELS;
+const MAX_RAYS: u64 = strahl_core::scene::file::MAX_IMAGE_PIXELS;
 /// Random rays when `--count` is not given.
 const DEFAULT_RANDOM_RAYS: u64 = 1_000_000;
 
@@ -90,7 +90,7 @@ pub fn run(a: RaysArgs) -> Result<()> {
     let scaling = spin_scaling(cores);
     let start = Instant::now();
     let scene = load(&a.scene)?;
-    strahl::render::check_memory(&scene, strahl::render::available_memory())?;
+    strahl_core::render::check_memory(&scene, strahl_core::render::available_memory())?;
     let prims = Primitives::<f32>::from_scene(&scene);
     let load_s = start.elapsed().as_secs_f64();
     if prims.bounded_count() == 0 {
@@ -101,7 +101,7 @@ pub fn run(a: RaysArgs) -> Result<()> {
     let start = Instant::now();
     let bvh = Bvh::build(&prims);
     let wide = (a.backend == BackendChoice::Cpu).then(|| WideBvh::new(&bvh, &prims));
-    let flat = wide.is_none().then(|| strahl::gpu_types::FlatScene::new(&scene, &prims, &bvh));
+    let flat = wide.is_none().then(|| strahl_core::layout::FlatScene::new(&scene, &prims, &bvh));
     let build_s = start.elapsed().as_secs_f64();
 
     let root = bvh.nodes[0];
@@ -183,7 +183,7 @@ pub fn run(a: RaysArgs) -> Result<()> {
 
 fn load(path: &Path) -> Result<Scene> {
     let is_obj = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-    Ok(if is_obj { strahl::scene::procedural::obj_scene(path)? } else { Scene::load(path)? })
+    Ok(if is_obj { strahl_core::scene::procedural::obj_scene(path)? } else { Scene::load(path)? })
 }
 
 /// Nearest hits of `rays` on the current rayon pool, as a batch query or one ray at a time;
@@ -206,12 +206,12 @@ fn cast_cpu(wide: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], one_at_a
 /// times: (adapter, upload seconds, bytes of the walk's nodes, triangles and references, times,
 /// hits).
 fn cast_gpu(
-    gpu: &strahl::gpu_types::FlatScene,
+    gpu: &strahl_core::layout::FlatScene,
     rays: &[Ray<f32>],
     reps: u32,
 ) -> Result<(String, f64, u64, Vec<Duration>, usize)> {
-    use strahl::backend::gpu::{GpuContext, SceneBuffers, trace};
-    use strahl::query::RayQuery;
+    use strahl_core::query::RayQuery;
+    use strahl_gpu::{GpuContext, SceneBuffers, trace};
     let ctx = GpuContext::new()?;
     let start = Instant::now();
     let buffers = SceneBuffers::upload(&ctx, gpu)?;

@@ -6,13 +6,13 @@ use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use strahl::backend::cpu;
-use strahl::backend::gpu::{self, SceneBuffers};
-use strahl::backend::select::{self, Selected, Workload};
 use strahl::converge::{Progressive, Row, Schedule};
-use strahl::image::Image;
-use strahl::render::Prepared;
-use strahl::scene::{RenderMode, Scene};
+use strahl_core::cpu;
+use strahl_core::image::Image;
+use strahl_core::render::Prepared;
+use strahl_core::scene::{RenderMode, Scene};
+use strahl_gpu::select::{self, Selected, Workload};
+use strahl_gpu::{self as gpu, SceneBuffers};
 
 /// Which backends to measure.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -87,7 +87,7 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
         super::check_image_size(w, h, true)?;
     }
     // Problems with the output folder or the reference surface before any work.
-    strahl::output::check_dir_target(&a.output)?;
+    strahl_core::output::check_dir_target(&a.output)?;
     if let Some(r) = &a.reference
         && !r.is_file()
     {
@@ -133,7 +133,9 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
                 .and_then(|s| open(s.selected))
             {
                 Ok(()) => {}
-                Err(e) => eprintln!("gpu backend unavailable ({}); measuring the cpu only", strahl::errors::chain(&e)),
+                Err(e) => {
+                    eprintln!("gpu backend unavailable ({}); measuring the cpu only", strahl_core::errors::chain(&e))
+                }
             }
             open(Selected::Cpu)?;
         }
@@ -267,7 +269,7 @@ fn open_progressive(
         Selected::Gpu(ctx) => {
             let ctx = Arc::new(*ctx);
             let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
-            let mut p = gpu::render::PathAccumulator::new(ctx, buffers, frame)?;
+            let mut p = gpu::tiles::PathAccumulator::new(ctx, buffers, frame)?;
             // lavapipe compiles the shader at its first dispatch.
             p.add_samples(1)?;
             p.reset();

@@ -15,10 +15,10 @@ pub struct MergeArgs {
 }
 
 pub fn run(a: MergeArgs) -> Result<()> {
-    strahl::output::check_file_target(&a.output)?;
-    let (image, placement) = strahl::parts::merge(&a.parts)?;
+    strahl_core::output::check_file_target(&a.output)?;
+    let (image, placement) = strahl_core::parts::merge(&a.parts)?;
     if a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-        strahl::image::write_exr(&a.output, &image, &placement)?;
+        strahl_core::image::write_exr(&a.output, &image, &placement)?;
     } else {
         image.save(&a.output)?;
     }

@@ -13,8 +13,8 @@ mod view;
 
 use clap::{CommandFactory, Parser, Subcommand};
 use std::path::PathBuf;
-pub use strahl::backend::select::Choice as BackendChoice;
-use strahl::backend::select::{Selected, Workload};
+pub use strahl_gpu::select::Choice as BackendChoice;
+use strahl_gpu::select::{Selected, Workload};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -93,7 +93,7 @@ pub fn usage_error(message: impl std::fmt::Display) -> anyhow::Error {
 /// Fails with a usage error when `width`×`height` exceeds the pixel limit and a flag set one
 /// of them (else the scene file is at fault, which names its own error).
 pub fn check_image_size(width: u32, height: u32, flags: bool) -> anyhow::Result<()> {
-    let max = strahl::scene::file::MAX_IMAGE_PIXELS;
+    let max = strahl_core::scene::file::MAX_IMAGE_PIXELS;
     if width as u64 * height as u64 > max {
         let message = format!("--width/--height: {width}x{height} is more than {max} pixels");
         return Err(if flags { usage_error(message) } else { anyhow::anyhow!(message) });
@@ -142,14 +142,14 @@ pub fn backend_choice(flag: Option<BackendChoice>) -> anyhow::Result<(BackendCho
 /// one); with whether `auto` chose it (neither the flag nor the environment forced one).
 pub fn open_backend(flag: Option<BackendChoice>, workload: Workload) -> anyhow::Result<(Selected, bool)> {
     let (choice, from_env) = backend_choice(flag)?;
-    let selection = strahl::backend::select::select(choice, workload)?;
+    let selection = strahl_gpu::select::select(choice, workload)?;
     match (&selection.note, from_env) {
         (Some(note), _) => eprintln!("{note}"),
         (None, true) => eprintln!(
             "backend: {} ({}={})",
             if matches!(selection.selected, Selected::Cpu) { "cpu" } else { "gpu" },
-            strahl::backend::select::ENV,
-            std::env::var(strahl::backend::select::ENV).unwrap_or_default().trim()
+            strahl_gpu::select::ENV,
+            std::env::var(strahl_gpu::select::ENV).unwrap_or_default().trim()
         ),
         (None, false) => {}
     }
@@ -157,7 +157,7 @@ pub fn open_backend(flag: Option<BackendChoice>, workload: Workload) -> anyhow::
 }
 
 /// The result of `gpu`, the job on the GPU; where `auto` chose the GPU and the device fails
-/// ([`strahl::backend::gpu::GpuError`]), the result of `cpu` after a line on standard error
+/// ([`strahl_gpu::GpuError`]), the result of `cpu` after a line on standard error
 /// that says so. Where the user forced the GPU, its error.
 pub fn gpu_or_cpu<T>(
     auto: bool,
@@ -165,8 +165,8 @@ pub fn gpu_or_cpu<T>(
     cpu: impl FnOnce() -> T,
 ) -> anyhow::Result<T> {
     match gpu() {
-        Err(e) if auto && e.downcast_ref::<strahl::backend::gpu::GpuError>().is_some() => {
-            eprintln!("backend: cpu (the gpu failed: {}; running on the cpu instead)", strahl::errors::chain(&e));
+        Err(e) if auto && e.downcast_ref::<strahl_gpu::GpuError>().is_some() => {
+            eprintln!("backend: cpu (the gpu failed: {}; running on the cpu instead)", strahl_core::errors::chain(&e));
             Ok(cpu())
         }
         done => done,
@@ -175,14 +175,14 @@ pub fn gpu_or_cpu<T>(
 
 /// What loading a scene read but did not use (skipped glTF primitives, unsupported
 /// extensions...), one `warning:` line each on stderr.
-pub fn print_scene_warnings(scene: &strahl::scene::Scene) {
+pub fn print_scene_warnings(scene: &strahl_core::scene::Scene) {
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
 }
 
 /// The one-line summary of a prepared scene, on stderr, after what loading it warned about.
-pub fn print_scene_summary(prep: &strahl::render::Prepared) {
+pub fn print_scene_summary(prep: &strahl_core::render::Prepared) {
     print_scene_warnings(&prep.scene);
     eprintln!(
         "scene: {} objects, {} triangles, BVH {} nodes (depth {}) built in {:.3} s, prepared in {:.3} s",
@@ -198,7 +198,7 @@ pub fn print_scene_summary(prep: &strahl::render::Prepared) {
 #[cfg(test)]
 mod tests {
     use super::gpu_or_cpu;
-    use strahl::backend::gpu::GpuError;
+    use strahl_gpu::GpuError;
 
     #[test]
     fn auto_falls_back_to_the_cpu_when_the_gpu_fails_and_a_forced_gpu_does_not() {

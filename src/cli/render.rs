@@ -6,11 +6,11 @@ use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
 use std::time::Instant;
-use strahl::backend::gpu::{self, SceneBuffers};
-use strahl::backend::select::{Selected, Workload};
-use strahl::image::{ExrPlacement, Region};
-use strahl::render::Prepared;
-use strahl::scene::{LoadOptions, RenderMode, Scene};
+use strahl_core::image::{ExrPlacement, Region};
+use strahl_core::render::Prepared;
+use strahl_core::scene::{LoadOptions, RenderMode, Scene};
+use strahl_gpu::select::{Selected, Workload};
+use strahl_gpu::{self as gpu, SceneBuffers};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -104,8 +104,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
         super::check_image_size(w, h, true)?;
     }
     // A missing, read-only or misnamed output fails now, not after the render.
-    strahl::output::check_file_target(&a.output)?;
-    if a.camera.is_some() && !strahl::scene::gltf::is_gltf_path(&a.scene) {
+    strahl_core::output::check_file_target(&a.output)?;
+    if a.camera.is_some() && !strahl_core::scene::gltf::is_gltf_path(&a.scene) {
         return Err(super::usage_error("--camera: only a glTF file (.gltf, .glb) has cameras to choose from"));
     }
     let mut scene = Scene::load_with(&a.scene, &LoadOptions { camera: a.camera })?;
@@ -153,8 +153,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let render_on_cpu = || {
         let start = Instant::now();
         let per_row = region.width() as u64 * frame.spp as u64;
-        let img =
-            strahl::backend::cpu::render_region(&prep, &frame, mode, region, &|rows| progress.set(rows * per_row));
+        let img = strahl_core::cpu::render_region(&prep, &frame, mode, region, &|rows| progress.set(rows * per_row));
         progress.finish();
         let secs = start.elapsed().as_secs_f64();
         let threads = rayon::current_num_threads();
@@ -174,7 +173,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             || {
                 let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
                 let (img, stats) =
-                    gpu::render::render_region(&ctx, &buffers, &frame, mode, buffers.key, region, &|done, total| {
+                    gpu::tiles::render_region(&ctx, &buffers, &frame, mode, buffers.key, region, &|done, total| {
                         // A step is one sample pass over one band.
                         progress.set(done * samples as u64 / total.max(1))
                     })?;
@@ -203,13 +202,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
     };
     let is_exr = a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     if is_exr {
-        let description = strahl::parts::Description { scene: &a.scene, mode, backend, device };
+        let description = strahl_core::parts::Description { scene: &a.scene, mode, backend, device };
         let placement = ExrPlacement {
             full: (width, height),
             region,
-            attributes: strahl::parts::describe(&description, &prep, &frame),
+            attributes: strahl_core::parts::describe(&description, &prep, &frame),
         };
-        strahl::image::write_exr(&a.output, &image, &placement)?;
+        strahl_core::image::write_exr(&a.output, &image, &placement)?;
     } else {
         image.save(&a.output)?;
     }
@@ -220,7 +219,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
 /// What preparing the shader cost, as measured: composing it and creating the pipeline, and
 /// the first sample pass, in which drivers that compile at the first dispatch (lavapipe)
 /// compile, beside the later passes where there are any.
-fn compile_report(stats: &gpu::render::RenderStats) -> String {
+fn compile_report(stats: &gpu::timing::RenderStats) -> String {
     let first = stats.first_pass.as_secs_f64();
     let later = if stats.passes > 1 {
         let mean = (stats.wall.as_secs_f64() - first).max(0.0) / (stats.passes - 1) as f64;

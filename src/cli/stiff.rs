@@ -2,8 +2,8 @@
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
-use strahl::backend::gpu::GpuContext;
 use strahl::stiff::cases::{Options, run_all};
+use strahl_gpu::GpuContext;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum StiffBackend {

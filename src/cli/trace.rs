@@ -6,11 +6,11 @@ use clap::{Args, ValueEnum};
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
-use strahl::backend::gpu::GpuContext;
-use strahl::backend::select::{Selected, Workload};
-use strahl::math::Real;
-use strahl::query::{HITS_HEADER, RayQuery, read_rays, write_hit_rows};
-use strahl::scene::Scene;
+use strahl_core::math::Real;
+use strahl_core::query::{HITS_HEADER, RayQuery, read_rays, write_hit_rows};
+use strahl_core::scene::Scene;
+use strahl_gpu::GpuContext;
+use strahl_gpu::select::{Selected, Workload};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Precision {
@@ -45,11 +45,11 @@ pub fn run(a: TraceArgs) -> Result<()> {
         return Err(super::usage_error("--precision f64 needs --backend cpu: the GPU traces in f32"));
     }
     if let Some(path) = &a.output {
-        strahl::output::check_file_target(path)?;
+        strahl_core::output::check_file_target(path)?;
     }
     let scene = Scene::load(&a.scene)?;
     super::print_scene_warnings(&scene);
-    strahl::render::check_memory(&scene, strahl::render::available_memory())?;
+    strahl_core::render::check_memory(&scene, strahl_core::render::available_memory())?;
     let rays = read_rays(&a.rays)?;
     let start = Instant::now();
     let csv = match a.precision {
@@ -69,7 +69,7 @@ pub fn run(a: TraceArgs) -> Result<()> {
     let secs = start.elapsed().as_secs_f64();
     match &a.output {
         Some(path) => {
-            strahl::output::write_bytes_atomic(path, csv.as_bytes())?;
+            strahl_core::output::write_bytes_atomic(path, csv.as_bytes())?;
             eprintln!("traced {} rays in {secs:.3} s; wrote {}", rays.len(), path.display());
         }
         None => std::io::stdout().write_all(csv.as_bytes())?,
@@ -78,19 +78,19 @@ pub fn run(a: TraceArgs) -> Result<()> {
 }
 
 fn cpu_csv<R: Real>(scene: &Scene, rays: &[RayQuery], all: bool) -> String {
-    hits_csv(rays, &strahl::backend::cpu::trace::<R>(scene, rays, all), all)
+    hits_csv(rays, &strahl_core::cpu::trace::<R>(scene, rays, all), all)
 }
 
 fn gpu_csv(ctx: GpuContext, scene: &Scene, rays: &[RayQuery], all: bool) -> Result<String> {
-    use strahl::backend::gpu::{SceneBuffers, trace};
-    let prep = strahl::render::Prepared::new(scene.clone());
+    use strahl_gpu::{SceneBuffers, trace};
+    let prep = strahl_core::render::Prepared::new(scene.clone());
     let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
     let hits = trace::trace(&ctx, &buffers, rays, all)?;
     eprintln!("traced on {}", ctx.adapter_name());
     Ok(hits_csv(rays, &hits, all))
 }
 
-fn hits_csv<R: Real>(rays: &[RayQuery], hits: &[Vec<strahl::primitives::Hit<R>>], all: bool) -> String {
+fn hits_csv<R: Real>(rays: &[RayQuery], hits: &[Vec<strahl_core::primitives::Hit<R>>], all: bool) -> String {
     let mut out = String::with_capacity(64 * rays.len() + HITS_HEADER.len() + 1);
     out.push_str(HITS_HEADER);
     out.push('\n');

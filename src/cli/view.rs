@@ -3,7 +3,7 @@
 use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
-use strahl::viewer::{ViewOptions, gpu::ViewMode};
+use strahl_viewer::{ViewOptions, gpu::ViewMode};
 
 #[derive(Args, Debug)]
 pub struct ViewArgs {
@@ -48,9 +48,9 @@ fn render_scale(s: &str) -> Result<f32, String> {
 
 pub fn run(a: ViewArgs) -> Result<()> {
     if let Some(p) = &a.screenshot {
-        strahl::output::check_file_target(p)?;
+        strahl_core::output::check_file_target(p)?;
     }
-    strahl::viewer::run(ViewOptions {
+    strahl_viewer::run(ViewOptions {
         scene: a.scene,
         size: [a.size.0, a.size.1],
         scale: a.scale,

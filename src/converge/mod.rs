@@ -2,20 +2,20 @@
 //!
 //! A backend implements [`Progressive`]; [`measure`] adds samples on a [`Schedule`], times
 //! them, and compares each intermediate mean with a reference image
-//! ([`crate::metrics::errors`]). The rows go to a CSV file ([`write_csv`]), a log-log plot
+//! ([`strahl_metrics::errors`]). The rows go to a CSV file ([`write_csv`]), a log-log plot
 //! ([`plot`]) and a Markdown table ([`table`]).
 
 mod plot;
 mod table;
 
-pub use crate::backend::Progressive;
 pub use plot::plot;
+pub use strahl_core::Progressive;
 pub use table::{table, write_csv};
 
-use crate::image::Image;
-use crate::metrics::{Errors, errors};
 use anyhow::{Context, Result, ensure};
 use std::time::Instant;
+use strahl_core::image::Image;
+use strahl_metrics::{Errors, errors};
 
 /// When [`measure`] stops to compare the image with the reference.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -165,10 +165,19 @@ fn fixed_time_batch(spp: u32, seconds: f64, budget: f64, max_spp: u32) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::metrics::tests::gradient;
-    use crate::rng::SplitMix64;
     use std::cell::Cell;
     use std::rc::Rc;
+    use strahl_core::rng::SplitMix64;
+
+    /// A smooth image in [0.3, 0.7].
+    fn gradient(w: u32, h: u32) -> Image {
+        let mut img = Image::new(w, h);
+        for (i, p) in img.pixels.iter_mut().enumerate() {
+            let (x, y) = ((i as u32 % w) as f32 / w as f32, (i as u32 / w) as f32 / h as f32);
+            *p = [0.3 + 0.4 * x, 0.5, 0.3 + 0.4 * y];
+        }
+        img
+    }
 
     /// A progressive mean of `reference` + uniform noise in [−0.3, 0.3) (within [0, 1] for
     /// [`gradient`]): its error falls as 1/sqrt(spp). Adding n samples advances `clock` by n ×

@@ -84,7 +84,7 @@ pub fn plot(rows: &[Row], title: &str, path: &Path) -> Result<()> {
         root.present().map_err(plot_error)?;
     }
     let img = image::RgbImage::from_raw(w, h, buf).context("plot buffer size mismatch")?;
-    crate::image::save_encoded(&img, image::ImageFormat::Png, path)
+    strahl_core::image::save_encoded(&img, image::ImageFormat::Png, path)
 }
 
 const SERIES_COLORS: [plotters::style::RGBColor; 6] = [

@@ -25,7 +25,7 @@ pub fn write_csv(rows: &[Row], path: &Path) -> Result<()> {
         )
         .expect("writing to a String");
     }
-    crate::output::write_bytes_atomic(path, s.as_bytes())
+    strahl_core::output::write_bytes_atomic(path, s.as_bytes())
 }
 
 /// A CSV field, quoted (RFC 4180) when it holds a comma, a quote or a line break.
@@ -72,7 +72,7 @@ fn sig4(x: f64) -> String {
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-    use crate::metrics::Errors;
+    use strahl_metrics::Errors;
 
     pub(crate) fn sample_rows() -> Vec<Row> {
         let e = |rmse: f64| Errors { rmse, rmse_clamped: rmse / 2.0, rel_mse: rmse * 2.0, mean_flip: rmse / 4.0 };

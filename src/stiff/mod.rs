@@ -78,7 +78,7 @@ pub fn rel_err(got: f64, exact: f64) -> f64 {
 }
 
 /// Distance of `got` from `exact` in ULPs (f32) of the largest coordinate of `exact`.
-pub fn ulps(got: crate::math::V3<f32>, exact: crate::math::V3<f64>) -> f64 {
+pub fn ulps(got: strahl_core::math::V3<f32>, exact: strahl_core::math::V3<f64>) -> f64 {
     let m = exact.abs().max_component().max(f32::MIN_POSITIVE as f64) as f32;
     let ulp = (m.next_up() - m) as f64;
     (got.to_f64() - exact).abs().max_component() / ulp

@@ -2,8 +2,8 @@
 //! arithmetic (≈ 106-bit significands, `twofloat`), where f64 alone cannot judge f32 (a
 //! sphere of radius 1e-4 a million units away needs t to 1e-10 relative).
 
-use crate::geometry::{Cylinder, Sphere, Triangle};
-use crate::math::{Ray, V3};
+use strahl_core::geometry::{Cylinder, Sphere, Triangle};
+use strahl_core::math::{Ray, V3};
 use twofloat::TwoFloat;
 
 type Dd = TwoFloat;

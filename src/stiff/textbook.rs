@@ -1,8 +1,8 @@
 //! The textbook formulations the robust ones replace, kept only so that `strahl stiff` can
 //! show what the robustness buys and costs. Nothing renders with these.
 
-use crate::geometry::{Cylinder, Sphere, Triangle};
-use crate::math::{Ray, V3};
+use strahl_core::geometry::{Cylinder, Sphere, Triangle};
+use strahl_core::math::{Ray, V3};
 
 /// The lecture's sphere formula as written: μ = −d·Δp ± √((d·Δp)² − |Δp|² + r²).
 /// Both terms under the root are ≈ |Δp|⁴-sized for a small sphere far away, and cancel.

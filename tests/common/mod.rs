@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use std::path::PathBuf;
-use strahl::backend::gpu::GpuContext;
+use strahl_gpu::GpuContext;
 
 /// Records that the running test skipped (all or part of) its checks, and why: a line
 /// `SKIPPED <test>: <why>` on standard error (shown with the test's output), and the same line
@@ -56,15 +56,15 @@ pub fn shipped_scenes() -> Vec<PathBuf> {
 
 /// Deterministic test randomness: the crate's SplitMix64.
 #[allow(unused_imports)] // not every test binary draws random rays
-pub use strahl::rng::SplitMix64 as Rng;
+pub use strahl_core::rng::SplitMix64 as Rng;
 
 /// The mean of `spp` path-traced samples per pixel of `frame` on the CPU.
 pub fn cpu_path_image(
-    prep: &std::sync::Arc<strahl::render::Prepared>,
-    frame: strahl::gpu_types::FrameParams,
+    prep: &std::sync::Arc<strahl_core::render::Prepared>,
+    frame: strahl_core::layout::FrameParams,
     spp: u32,
-) -> strahl::image::Image {
-    let mut p = strahl::backend::cpu::PathAccumulator::new(prep.clone(), frame);
+) -> strahl_core::image::Image {
+    let mut p = strahl_core::cpu::PathAccumulator::new(prep.clone(), frame);
     p.add_samples(spp);
     p.image()
 }
@@ -72,12 +72,12 @@ pub fn cpu_path_image(
 /// The mean of `spp` path-traced samples per pixel of `frame` on the GPU.
 pub fn gpu_path_image(
     ctx: &std::sync::Arc<GpuContext>,
-    prep: &strahl::render::Prepared,
-    frame: strahl::gpu_types::FrameParams,
+    prep: &strahl_core::render::Prepared,
+    frame: strahl_core::layout::FrameParams,
     spp: u32,
-) -> strahl::image::Image {
-    let buffers = strahl::backend::gpu::SceneBuffers::upload(ctx, &prep.gpu).unwrap();
-    let mut p = strahl::backend::gpu::render::PathAccumulator::new(ctx.clone(), buffers, frame).unwrap();
+) -> strahl_core::image::Image {
+    let buffers = strahl_gpu::SceneBuffers::upload(ctx, &prep.gpu).unwrap();
+    let mut p = strahl_gpu::tiles::PathAccumulator::new(ctx.clone(), buffers, frame).unwrap();
     p.add_samples(spp).unwrap();
     p.image().unwrap()
 }

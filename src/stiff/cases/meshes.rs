@@ -2,13 +2,13 @@
 //! triangles (no false hits, no NaN).
 
 use super::*;
-use crate::accel::{Bvh, traverse};
-use crate::backend::gpu::{GpuError, trace};
-use crate::geometry::{Shape, Triangle};
-use crate::math::{Ray, V3};
-use crate::primitives::{Primitives, Tag, Tagged};
-use crate::query::RayQuery;
 use std::time::Instant;
+use strahl_core::accel::{Bvh, traverse};
+use strahl_core::geometry::{Shape, Triangle};
+use strahl_core::math::{Ray, V3};
+use strahl_core::primitives::{Primitives, Tag, Tagged};
+use strahl_core::query::RayQuery;
+use strahl_gpu::{GpuError, trace};
 
 /// A closed UV sphere: `nu` segments around, `nv` rings, single vertices at the poles.
 pub fn uv_sphere(nu: usize, nv: usize, radius: f64, centre: V3<f64>) -> (Vec<V3<f64>>, Vec<[u32; 3]>) {
@@ -46,7 +46,7 @@ pub fn closed_mesh_leaks(total_rays: usize, opt: &Options, rng: &mut Rng) -> Res
     let meshes = [
         ("UV sphere", uv_sphere(96, 48, 1.0, centre)),
         ("torus", {
-            let (v, f) = crate::scene::mesh::bumpy_torus(160, 80, 2.0, 0.8);
+            let (v, f) = strahl_core::scene::mesh::bumpy_torus(160, 80, 2.0, 0.8);
             (v.into_iter().map(|p| p + centre).collect(), f)
         }),
     ];

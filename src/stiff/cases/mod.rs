@@ -13,14 +13,14 @@ pub use scenes::*;
 pub use spawn::*;
 
 use super::{Row, Stats, Variant, oracle, rel_err, textbook, ulps};
-use crate::accel::Bvh;
-use crate::backend::gpu::{GpuContext, GpuError, SceneBuffers};
-use crate::gpu_types::FlatScene;
-use crate::math::{Ray, V3};
-use crate::primitives::Primitives;
-use crate::query::RayQuery;
-use crate::scene::{Camera, ImageSize, Material, RenderSettings, Scene};
 use std::time::Instant;
+use strahl_core::accel::Bvh;
+use strahl_core::layout::FlatScene;
+use strahl_core::math::{Ray, V3};
+use strahl_core::primitives::Primitives;
+use strahl_core::query::RayQuery;
+use strahl_core::scene::{Camera, ImageSize, Material, RenderSettings, Scene};
+use strahl_gpu::{GpuContext, GpuError, SceneBuffers};
 
 /// Where and how much to run.
 pub struct Options<'a> {
@@ -50,7 +50,7 @@ impl Options<'_> {
 }
 
 /// The cases' generator.
-pub use crate::rng::SplitMix64 as Rng;
+pub use strahl_core::rng::SplitMix64 as Rng;
 
 /// A ray as strahl takes it: f64 origin and direction rounded to f32.
 fn ray32(o: V3<f64>, d: V3<f64>) -> Ray<f32> {

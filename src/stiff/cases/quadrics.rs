@@ -2,11 +2,11 @@
 //! variant's roots against the f64 oracle.
 
 use super::*;
-use crate::backend::gpu::{GpuError, trace};
-use crate::geometry::{Cylinder, Shape, Sphere};
-use crate::math::{Ray, V3};
-use crate::primitives::{Primitives, Tag, Tagged};
-use crate::query::RayQuery;
+use strahl_core::geometry::{Cylinder, Shape, Sphere};
+use strahl_core::math::{Ray, V3};
+use strahl_core::primitives::{Primitives, Tag, Tagged};
+use strahl_core::query::RayQuery;
+use strahl_gpu::{GpuError, trace};
 
 #[derive(Clone, Copy, Debug)]
 pub enum Quadric {

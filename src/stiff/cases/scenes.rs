@@ -2,9 +2,9 @@
 //! same scene at the origin and at scale 1.
 
 use super::*;
-use crate::backend::gpu::{GpuError, SceneBuffers};
-use crate::geometry::{Cylinder, Sphere, Triangle};
-use crate::scene::{RenderMode, Scene};
+use strahl_core::geometry::{Cylinder, Sphere, Triangle};
+use strahl_core::scene::{RenderMode, Scene};
+use strahl_gpu::{GpuError, SceneBuffers};
 
 /// A small scene, as is and translated by (1e5, 1e5, 1e5).
 pub fn scene_at(offset: f64) -> Scene {
@@ -65,7 +65,8 @@ intensity = [300, 300, 300]
         y8 = offset + 8.0,
         zm6 = offset - 6.0,
     );
-    crate::scene::file::parse(&text, std::path::Path::new("far.toml"), std::path::Path::new(".")).expect("valid scene")
+    strahl_core::scene::file::parse(&text, std::path::Path::new("far.toml"), std::path::Path::new("."))
+        .expect("valid scene")
 }
 
 /// `scene` with every position and length multiplied by `s`: the camera, the objects and the
@@ -73,7 +74,7 @@ intensity = [300, 300, 300]
 /// unchanged (emissive radiance and directional irradiance do not depend on the scale). Up to
 /// rounding it renders the same image at any scale.
 pub fn scaled(scene: &Scene, s: f64) -> Scene {
-    use crate::scene::{Geometry, Light};
+    use strahl_core::scene::{Geometry, Light};
     let tri = |t: &Triangle<f64>| Triangle { v: t.v.map(|p| p * s) };
     let mut out = scene.clone();
     out.camera.eye = scene.camera.eye * s;
@@ -84,7 +85,9 @@ pub fn scaled(scene: &Scene, s: f64) -> Scene {
             Geometry::Cylinder(c) => {
                 Geometry::Cylinder(Cylinder { p1: c.p1 * s, p2: c.p2 * s, radius: c.radius * s, ..*c })
             }
-            Geometry::Plane(p) => Geometry::Plane(crate::geometry::Plane { point: p.point * s, normal: p.normal }),
+            Geometry::Plane(p) => {
+                Geometry::Plane(strahl_core::geometry::Plane { point: p.point * s, normal: p.normal })
+            }
             Geometry::Triangle(t) => Geometry::Triangle(tri(t)),
             Geometry::Polygon { vertices, triangles } => Geometry::Polygon {
                 vertices: vertices.iter().map(|&v| v * s).collect(),
@@ -109,7 +112,11 @@ pub fn scaled(scene: &Scene, s: f64) -> Scene {
 
 /// Acne (a lit pixel rendered much darker: the surface shadows itself) and holes (background
 /// where there is geometry, or the reverse) of a render against the reference.
-pub fn acne_and_holes(reference: &crate::image::Image, test: &crate::image::Image, background: [f32; 3]) -> usize {
+pub fn acne_and_holes(
+    reference: &strahl_core::image::Image,
+    test: &strahl_core::image::Image,
+    background: [f32; 3],
+) -> usize {
     let lum = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
     reference
         .pixels
@@ -127,16 +134,16 @@ pub fn acne_and_holes(reference: &crate::image::Image, test: &crate::image::Imag
 /// renders nothing).
 fn render_on(
     variant: Variant,
-    prep: &crate::render::Prepared,
-    frame: &crate::gpu_types::FrameParams,
+    prep: &strahl_core::render::Prepared,
+    frame: &strahl_core::layout::FrameParams,
     opt: &Options,
-) -> Result<Option<crate::image::Image>, GpuError> {
+) -> Result<Option<strahl_core::image::Image>, GpuError> {
     Ok(match variant {
-        Variant::Cpu => Some(crate::backend::cpu::render(prep, frame, RenderMode::Whitted, &|_| {})),
+        Variant::Cpu => Some(strahl_core::cpu::render(prep, frame, RenderMode::Whitted, &|_| {})),
         Variant::Gpu => {
             let ctx = opt.gpu.expect("gpu");
             let b = SceneBuffers::upload(ctx, &prep.gpu)?;
-            Some(crate::backend::gpu::render::render(ctx, &b, frame, RenderMode::Whitted, b.key, &|_, _| {})?.0)
+            Some(strahl_gpu::tiles::render(ctx, &b, frame, RenderMode::Whitted, b.key, &|_, _| {})?.0)
         }
         Variant::Textbook => None,
     })
@@ -144,11 +151,11 @@ fn render_on(
 
 /// The scene translated by 1e5 must render as it does at the origin: no acne, no holes.
 pub fn far_from_origin(opt: &Options) -> Result<Vec<Row>, GpuError> {
-    let near = crate::render::Prepared::new(scene_at(0.0));
-    let far = crate::render::Prepared::new(scene_at(1e5));
+    let near = strahl_core::render::Prepared::new(scene_at(0.0));
+    let far = strahl_core::render::Prepared::new(scene_at(1e5));
     let frame_near = near.frame(160, 120);
     let frame_far = far.frame(160, 120);
-    let reference = crate::backend::cpu::render(&near, &frame_near, RenderMode::Whitted, &|_| {});
+    let reference = strahl_core::cpu::render(&near, &frame_near, RenderMode::Whitted, &|_| {});
     let bg = near.scene.render.background.map(|c| c as f32);
     each_variant(opt, |variant| {
         let Some(img) = render_on(variant, &far, &frame_far, opt)? else { return Ok(None) };
@@ -163,7 +170,7 @@ pub fn far_from_origin(opt: &Options) -> Result<Vec<Row>, GpuError> {
 }
 
 /// Pixels of two images whose 8-bit sRGB codes differ by more than `codes` in some channel.
-pub fn pixels_off_by_more_than(a: &crate::image::Image, b: &crate::image::Image, codes: u8) -> usize {
+pub fn pixels_off_by_more_than(a: &strahl_core::image::Image, b: &strahl_core::image::Image, codes: u8) -> usize {
     let (a, b) = (a.to_srgb8(), b.to_srgb8());
     a.chunks(3).zip(b.chunks(3)).filter(|(p, q)| p.iter().zip(q.iter()).any(|(x, y)| x.abs_diff(*y) > codes)).count()
 }
@@ -177,11 +184,11 @@ pub const SCALES: [f64; 4] = [1e-6, 1e-3, 1e3, 1e6];
 /// reflections (and glass, in the seed scene).
 pub fn scaled_scenes(opt: &Options) -> Result<Vec<Row>, GpuError> {
     let (w, h) = (160, 120);
-    let base = crate::render::Prepared::new(scene_at(0.0));
-    let reference = crate::backend::cpu::render(&base, &base.frame(w, h), RenderMode::Whitted, &|_| {});
+    let base = strahl_core::render::Prepared::new(scene_at(0.0));
+    let reference = strahl_core::cpu::render(&base, &base.frame(w, h), RenderMode::Whitted, &|_| {});
     let mut rows = Vec::new();
     for s in SCALES {
-        let prep = crate::render::Prepared::new(scaled(&base.scene, s));
+        let prep = strahl_core::render::Prepared::new(scaled(&base.scene, s));
         let frame = prep.frame(w, h);
         rows.extend(each_variant(opt, |variant| {
             let Some(img) = render_on(variant, &prep, &frame, opt)? else { return Ok(None) };

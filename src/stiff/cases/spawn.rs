@@ -1,11 +1,11 @@
 //! Spawned rays: secondary rays must not hit the surface they leave.
 
 use super::*;
-use crate::accel::Bvh;
-use crate::backend::gpu::{GpuError, trace};
-use crate::geometry::{Part, Shape, Sphere};
-use crate::math::{Ray, V3};
-use crate::primitives::{PrimKind, PrimRef, Primitives, Tag, Tagged};
+use strahl_core::accel::Bvh;
+use strahl_core::geometry::{Part, Shape, Sphere};
+use strahl_core::math::{Ray, V3};
+use strahl_core::primitives::{PrimKind, PrimRef, Primitives, Tag, Tagged};
+use strahl_gpu::{GpuError, trace};
 
 /// Spawned rays: `shapes` spheres and capped cylinders with radii 10^U[−4, 4] at offsets up to
 /// 1e6, `rays` rays each; each hit spawns a ray into the outside hemisphere, which must not
@@ -76,7 +76,7 @@ pub fn spawned_rays(shapes: usize, rays: usize, opt: &Options, rng: &mut Rng) ->
     let n = pairs.len();
     each_variant(opt, |variant| {
         let (rehits, nan) = match variant {
-            Variant::Cpu => count_rehits(&crate::backend::cpu::trace_spawn(&prims, &bvh, &pairs), &targets),
+            Variant::Cpu => count_rehits(&strahl_core::cpu::trace_spawn(&prims, &bvh, &pairs), &targets),
             Variant::Gpu => {
                 let ctx = opt.gpu.expect("gpu");
                 let buffers = upload(ctx, &prims)?;
@@ -107,7 +107,7 @@ pub fn spawned_rays(shapes: usize, rays: usize, opt: &Options, rng: &mut Rng) ->
 /// Re-hits among the pairs whose first hit is their target, on the part the exact hit is
 /// on (shapes may overlap, so a ray can first meet another one; those pairs judge nothing),
 /// and NaN outputs.
-fn count_rehits(results: &[crate::backend::SpawnHits], targets: &[(Quadric, PrimRef, Part)]) -> (usize, usize) {
+fn count_rehits(results: &[strahl_core::SpawnHits], targets: &[(Quadric, PrimRef, Part)]) -> (usize, usize) {
     let mut rehits = 0;
     let mut nan = 0;
     for ((first, second), (_, prim, part)) in results.iter().zip(targets) {

@@ -1,0 +1,182 @@
+//! The CPU backend: the f32 mirror of the GPU, run with rayon over image rows.
+
+use crate::image::{Image, Region};
+use crate::layout::FrameParams;
+use crate::render::shade::ShadeInputs;
+use crate::render::{Prepared, path, shade};
+use crate::scene::RenderMode;
+use rayon::prelude::*;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Renders the image described by `frame` (its `width`, `height`, `spp`, `sample_base`) in
+/// `mode`. `progress` is called with the number of rows finished so far, from worker threads.
+pub fn render(prep: &Prepared, frame: &FrameParams, mode: RenderMode, progress: &(dyn Fn(u64) + Sync)) -> Image {
+    render_region(prep, frame, mode, Region::whole(frame.width, frame.height), progress)
+}
+
+/// Renders the pixels of `region` of the image described by `frame`, each exactly as a
+/// render of the whole image computes it (its rays and random numbers depend on the pixel's
+/// place in the whole image only). `progress` is called with the number of the region's rows
+/// finished so far, from worker threads.
+pub fn render_region(
+    prep: &Prepared,
+    frame: &FrameParams,
+    mode: RenderMode,
+    region: Region,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Image {
+    assert!(region.fits(frame.width, frame.height), "region {region} of a {}x{} image", frame.width, frame.height);
+    let inputs = ShadeInputs { prims: &prep.prims, wide: &prep.wide, gpu: &prep.gpu, frame };
+    let shade_pixel = match mode {
+        RenderMode::Whitted => shade::shade_pixel,
+        RenderMode::Path => path::shade_pixel,
+    };
+    let mut img = Image::new(region.width(), region.height());
+    if img.pixels.is_empty() {
+        return img;
+    }
+    let done = AtomicU64::new(0);
+    img.pixels.par_chunks_mut(region.width() as usize).enumerate().for_each(|(dy, row)| {
+        let y = region.y0 + dy as u32;
+        for (dx, px) in row.iter_mut().enumerate() {
+            *px = shade_pixel(&inputs, region.x0 + dx as u32, y);
+        }
+        progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+    });
+    img
+}
+
+/// PathAccumulator path tracing on the CPU: per-pixel sums that grow by whole sample passes, in
+/// the order the GPU's passes add them.
+pub struct PathAccumulator {
+    prep: Arc<Prepared>,
+    frame: FrameParams,
+    sums: Vec<[f32; 3]>,
+    samples: u32,
+}
+
+impl PathAccumulator {
+    /// An empty accumulation for `frame` (whole image; its `spp` and `sample_base` are ignored).
+    pub fn new(prep: Arc<Prepared>, frame: FrameParams) -> Self {
+        let n = frame.width as usize * frame.height as usize;
+        Self { prep, frame, sums: vec![[0.0; 3]; n], samples: 0 }
+    }
+
+    /// Adds samples `samples() .. samples() + n` to every pixel.
+    pub fn add_samples(&mut self, n: u32) {
+        let frame = FrameParams { spp: 1, ..self.frame };
+        let prep = &self.prep;
+        let inputs = ShadeInputs { prims: &prep.prims, wide: &prep.wide, gpu: &prep.gpu, frame: &frame };
+        let first = self.samples;
+        self.sums.par_chunks_mut(frame.width as usize).enumerate().for_each(|(y, row)| {
+            for (x, px) in row.iter_mut().enumerate() {
+                for s in first..first + n {
+                    let c = path::sample_pixel(&inputs, x as u32, y as u32, s);
+                    *px = [px[0] + c.x, px[1] + c.y, px[2] + c.z];
+                }
+            }
+        });
+        self.samples += n;
+    }
+
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// Starts over from zero samples.
+    pub fn reset(&mut self) {
+        self.sums.iter_mut().for_each(|s| *s = [0.0; 3]);
+        self.samples = 0;
+    }
+
+    /// The mean of the samples so far (black before the first).
+    pub fn image(&self) -> Image {
+        let mut img = Image::new(self.frame.width, self.frame.height);
+        let k = 1.0 / self.samples.max(1) as f32;
+        for (p, s) in img.pixels.iter_mut().zip(&self.sums) {
+            *p = s.map(|c| c * k);
+        }
+        img
+    }
+}
+
+/// The CPU backend's progressive path tracer.
+impl crate::Progressive for PathAccumulator {
+    fn label(&self) -> String {
+        format!("cpu ({} threads)", rayon::current_num_threads())
+    }
+    fn backend(&self) -> &'static str {
+        "cpu"
+    }
+    fn add_samples(&mut self, n: u32) -> anyhow::Result<()> {
+        PathAccumulator::add_samples(self, n);
+        Ok(())
+    }
+    fn samples(&self) -> u32 {
+        PathAccumulator::samples(self)
+    }
+    fn image(&mut self) -> anyhow::Result<Image> {
+        Ok(PathAccumulator::image(self))
+    }
+}
+
+/// Answers ray queries in precision `R` (f32: the GPU's mirror; f64: the oracle): the
+/// nearest hit per ray, or with `all` every hit sorted by `t`.
+pub fn trace<R: crate::math::Real>(
+    scene: &crate::scene::Scene,
+    rays: &[crate::query::RayQuery],
+    all: bool,
+) -> Vec<Vec<crate::primitives::Hit<R>>> {
+    use crate::accel::{Bvh, WideBvh, traverse, wide_traverse};
+    use crate::primitives::{Hit, Primitives};
+    use std::any::Any;
+    let prims = Primitives::<R>::from_scene(scene);
+    let bvh = Bvh::build(&prims);
+    // Nearest hits in f32 take the CPU's 8-wide walk (the same answers, faster).
+    if let (false, Some(p32)) = (all, (&prims as &dyn Any).downcast_ref::<Primitives<f32>>()) {
+        let wide = WideBvh::new(&bvh, p32);
+        let hits: Vec<Vec<Hit<f32>>> = rays
+            .par_iter()
+            .map(|q| wide_traverse::nearest(&wide, p32, &q.ray(), q.tmin as f32, q.tmax as f32).into_iter().collect())
+            .collect();
+        let hits: Box<dyn Any> = Box::new(hits);
+        return *hits.downcast::<Vec<Vec<Hit<R>>>>().expect("R is f32 here");
+    }
+    rays.par_iter()
+        .map(|q| {
+            let ray = q.ray::<R>();
+            let (tmin, tmax) = (R::from_f64(q.tmin), R::from_f64(q.tmax));
+            if all {
+                traverse::all(&bvh, &prims, &ray, tmin, tmax)
+            } else {
+                traverse::nearest(&bvh, &prims, &ray, tmin, tmax).into_iter().collect()
+            }
+        })
+        .collect()
+}
+
+/// Spawned rays, the twin of `trace_spawn` in `shaders/trace.wgsl`: `pairs[i].0` is traced to
+/// its nearest hit; from there a ray leaves along `pairs[i].1` (unit), starting at the hit
+/// point moved off the surface by [`crate::render::spawn::spawn_origin`] to the side it
+/// leaves from. Returns (first hit, spawned ray's nearest hit) per pair.
+pub fn trace_spawn(
+    prims: &crate::primitives::Primitives<f32>,
+    bvh: &crate::accel::Bvh,
+    pairs: &[(crate::math::Ray<f32>, crate::math::V3<f32>)],
+) -> Vec<crate::SpawnHits> {
+    use crate::math::Ray;
+    let wide = crate::accel::WideBvh::new(bvh, prims);
+    let nearest = |ray: &Ray<f32>| crate::accel::wide_traverse::nearest(&wide, prims, ray, 0.0, f32::INFINITY);
+    pairs
+        .par_iter()
+        .map(|(ray, dir2)| {
+            let Some(first) = nearest(ray) else {
+                return (None, None);
+            };
+            let side = if dir2.dot(first.normal) >= 0.0 { first.normal } else { -first.normal };
+            let o2 = crate::render::spawn::spawn_origin(ray, first.t, side);
+            (Some(first), nearest(&Ray::new(o2, *dir2)))
+        })
+        .collect()
+}

@@ -1,0 +1,45 @@
+//! strahl-core: everything strahl is without a device: the scene read from its files, the
+//! primitives and their intersections (f32, the GPU's mirror, and f64, the oracle), the BVH,
+//! the render stages both backends run, the buffer layouts they share, and the CPU backend.
+//!
+//! Data flows one way: scene file → [`scene::Scene`] → [`primitives::Primitives`] →
+//! [`accel::Bvh`] → a backend ([`cpu`] here, `strahl-gpu` on a device) → [`image::Image`] →
+//! output. [`parts`] assembles images rendered a region at a time.
+
+// `!(x >= 0.0)` is used on purpose throughout: unlike `x < 0.0` it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod accel;
+pub mod cpu;
+pub mod errors;
+pub mod geometry;
+pub mod image;
+pub mod input;
+pub mod layout;
+pub mod math;
+pub mod output;
+pub mod parts;
+pub mod primitives;
+pub mod query;
+pub mod raysets;
+pub mod render;
+pub mod rng;
+pub mod scene;
+
+/// A spawned-ray query's answer: the first hit, and the nearest hit of the ray spawned from it.
+pub type SpawnHits = (Option<crate::primitives::Hit<f32>>, Option<crate::primitives::Hit<f32>>);
+
+/// A renderer that adds samples to a running per-pixel mean: each backend's progressive path
+/// tracer, as `strahl converge` and the benchmarks drive it.
+pub trait Progressive {
+    /// Name for tables and plots, e.g. "gpu (llvmpipe (LLVM 15.0.6, 256 bits))" or "cpu (2 threads)".
+    fn label(&self) -> String;
+    /// Short backend id for CSV: "gpu" or "cpu".
+    fn backend(&self) -> &'static str;
+    /// Adds `n` samples per pixel (sample indices samples()..samples()+n) and returns when they are done.
+    fn add_samples(&mut self, n: u32) -> anyhow::Result<()>;
+    /// Samples per pixel accumulated so far.
+    fn samples(&self) -> u32;
+    /// The current mean image (reading it back is not timed).
+    fn image(&mut self) -> anyhow::Result<crate::image::Image>;
+}

@@ -1,0 +1,324 @@
+//! Scattering at a surface for the path tracer (`bsdf.wgsl` is the twin): Lambertian diffuse,
+//! smooth and GGX-rough conductors, smooth dielectrics, and glTF's metallic-roughness material
+//! ([`MaterialKind::Pbr`], its lobes from [`super::pbr`]).
+//!
+//! Directions are world-space unit vectors; `wo` points away from the surface towards where
+//! the light goes (back along the incoming ray) and `ns` is the normal on `wo`'s side.
+//! "Weight" is f·|cos θ_i| / pdf, the factor a sampled direction multiplies the path by.
+
+use super::microfacet::{ggx_d, ggx_lambda, ggx_sample_visible, schlick};
+use super::pbr::{pbr_fresnel, pbr_lobes};
+use super::shade::{fresnel_dielectric, reflect, refract};
+use crate::layout::GpuMaterial;
+use crate::math::V3;
+use crate::scene::MaterialKind;
+
+const PI: f32 = std::f32::consts::PI;
+const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
+/// Mirrors with a GGX α below this are perfectly smooth: the microfacet terms lose all
+/// precision in f32 (D ~ 1/α² overflows the useful range) long before they matter visually.
+pub const MIN_ROUGHNESS: f32 = 1e-3;
+
+/// A direction chosen by [`sample`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BsdfSample {
+    pub dir: V3<f32>,
+    /// f·|cos θ_i| / pdf.
+    pub weight: V3<f32>,
+    /// Solid-angle density of `dir` (0 for a specular choice, which has no density).
+    pub pdf: f32,
+    pub specular: bool,
+}
+
+/// f·cos θ_i and the density of the pbr material (both lobes).
+fn pbr_eval(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>) -> (V3<f32>, f32) {
+    let (cos_o, cos_i) = (wo.dot(ns), wi.dot(ns));
+    if cos_o <= 0.0 || cos_i <= 0.0 {
+        return (V3::zero(), 0.0);
+    }
+    let l = pbr_lobes(m, cos_o);
+    let mut f_cos = l.diffuse * (cos_i * INV_PI);
+    let mut pdf = (1.0 - l.p_spec) * cos_i * INV_PI;
+    let h = (wo + wi).normalize();
+    let cos_h = h.dot(ns);
+    if cos_h > 0.0 {
+        let d = ggx_d(l.alpha, cos_h);
+        let (lo, li) = (ggx_lambda(l.alpha, cos_o), ggx_lambda(l.alpha, cos_i));
+        let k = d / (4.0 * cos_o);
+        let f = pbr_fresnel(&l, wo.dot(h));
+        f_cos += f * (k / (1.0 + lo + li));
+        pdf += l.p_spec * k / (1.0 + lo);
+    }
+    (f_cos, pdf)
+}
+
+/// A direction from the pbr material: `u[0]` picks the lobe, `u[1]`, `u[2]` the direction.
+fn pbr_sample(m: &GpuMaterial, wo: V3<f32>, ns: V3<f32>, u: [f32; 3]) -> Option<BsdfSample> {
+    let cos_o = wo.dot(ns);
+    if cos_o <= 0.0 {
+        return None;
+    }
+    let l = pbr_lobes(m, cos_o);
+    if l.p_spec <= 0.0 && l.diffuse.max_component() <= 0.0 {
+        return None;
+    }
+    let dir = if u[0] < l.p_spec {
+        let h = to_world(ggx_sample_visible(l.alpha, to_local(wo, ns), u[1], u[2]), ns);
+        reflect(-wo, h)
+    } else {
+        to_world(cosine_hemisphere(u[1], u[2]), ns).normalize()
+    };
+    let (f_cos, pdf) = pbr_eval(m, wo, dir, ns);
+    if !(pdf > 0.0) {
+        return None;
+    }
+    Some(BsdfSample { dir, weight: f_cos / pdf, pdf, specular: false })
+}
+
+/// Whether the material scatters only into isolated directions (no next-event estimation).
+#[inline]
+pub fn is_specular(m: &GpuMaterial) -> bool {
+    m.kind() == MaterialKind::Dielectric || (m.kind() == MaterialKind::Mirror && m.roughness < MIN_ROUGHNESS)
+}
+
+/// An orthonormal basis (t, b) around unit `n`, branchless (Duff et al., "Building an
+/// Orthonormal Basis, Revisited", JCGT 2017).
+#[inline]
+pub fn basis(n: V3<f32>) -> (V3<f32>, V3<f32>) {
+    // (n.z ≥ 0 rather than copysign: -0 takes the + branch, as in the WGSL twin.)
+    let sign = if n.z >= 0.0 { 1.0f32 } else { -1.0 };
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (V3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), V3::new(b, sign + n.y * n.y * a, -n.y))
+}
+
+#[inline]
+fn to_world(v: V3<f32>, n: V3<f32>) -> V3<f32> {
+    let (t, b) = basis(n);
+    t * v.x + b * v.y + n * v.z
+}
+
+#[inline]
+fn to_local(v: V3<f32>, n: V3<f32>) -> V3<f32> {
+    let (t, b) = basis(n);
+    V3::new(v.dot(t), v.dot(b), v.dot(n))
+}
+
+/// Cosine-weighted direction around +z (Malley's method: a uniform disk point lifted).
+#[inline]
+pub fn cosine_hemisphere(u1: f32, u2: f32) -> V3<f32> {
+    let r = u1.sqrt();
+    let phi = 2.0 * PI * u2;
+    V3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt())
+}
+
+/// f·cos θ_i and the density [`sample`] would choose `wi` with, for a non-specular material.
+pub fn eval(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>) -> (V3<f32>, f32) {
+    let cos_i = wi.dot(ns);
+    if cos_i <= 0.0 {
+        return (V3::zero(), 0.0);
+    }
+    if m.kind() == MaterialKind::Pbr {
+        return pbr_eval(m, wo, wi, ns);
+    }
+    let color = V3::from_array(m.color);
+    if m.kind() == MaterialKind::Mirror {
+        let alpha = m.roughness;
+        let cos_o = wo.dot(ns);
+        let h = (wo + wi).normalize();
+        let cos_h = h.dot(ns);
+        if cos_o <= 0.0 || cos_h <= 0.0 {
+            return (V3::zero(), 0.0);
+        }
+        let d = ggx_d(alpha, cos_h);
+        let (lo, li) = (ggx_lambda(alpha, cos_o), ggx_lambda(alpha, cos_i));
+        let g2 = 1.0 / (1.0 + lo + li);
+        let g1 = 1.0 / (1.0 + lo);
+        let f = schlick(color, wo.dot(h));
+        // f cos θ_i = D G2 F / (4 cos θ_o); pdf = D G1(wo) / (4 cos θ_o) (VNDF, reflected).
+        let k = d / (4.0 * cos_o);
+        return (f * (k * g2), k * g1);
+    }
+    // Lambertian (diffuse and emissive surfaces).
+    (color * (cos_i * INV_PI), cos_i * INV_PI)
+}
+
+/// Chooses the next direction with three uniform numbers `u`; `front`: the ray arrived on the
+/// front face (outside a dielectric). None: the path ends (absorbed, or a sampled direction
+/// fell below the surface).
+pub fn sample(m: &GpuMaterial, wo: V3<f32>, ns: V3<f32>, front: bool, u: [f32; 3]) -> Option<BsdfSample> {
+    if m.kind() == MaterialKind::Pbr {
+        return pbr_sample(m, wo, ns, u);
+    }
+    let color = V3::from_array(m.color);
+    if m.kind() == MaterialKind::Dielectric {
+        let cos_i = wo.dot(ns);
+        let eta = if front { m.ior } else { 1.0 / m.ior };
+        let f = fresnel_dielectric(cos_i, eta);
+        if u[0] < f {
+            return Some(BsdfSample { dir: reflect(-wo, ns), weight: V3::splat(1.0), pdf: 0.0, specular: true });
+        }
+        // Snell; radiance is compressed into the smaller solid angle by 1/η² (pbrt-v4 9.5.2).
+        let dir = refract(-wo, ns, cos_i, 1.0 / eta);
+        return Some(BsdfSample { dir, weight: color / (eta * eta), pdf: 0.0, specular: true });
+    }
+    if m.kind() == MaterialKind::Mirror {
+        let cos_o = wo.dot(ns);
+        if m.roughness < MIN_ROUGHNESS {
+            let dir = reflect(-wo, ns);
+            return Some(BsdfSample { dir, weight: schlick(color, cos_o), pdf: 0.0, specular: true });
+        }
+        let alpha = m.roughness;
+        let h = to_world(ggx_sample_visible(alpha, to_local(wo, ns), u[1], u[2]), ns);
+        let dir = reflect(-wo, h);
+        let cos_i = dir.dot(ns);
+        if cos_i <= 0.0 || cos_o <= 0.0 {
+            return None;
+        }
+        let (lo, li) = (ggx_lambda(alpha, cos_o), ggx_lambda(alpha, cos_i));
+        // Weight F G2 / G1(wo) (Heitz 2018, eq. 19); pdf D G1(wo) / (4 cos θ_o).
+        let weight = schlick(color, wo.dot(h)) * ((1.0 + lo) / (1.0 + lo + li));
+        let pdf = ggx_d(alpha, h.dot(ns)) / ((1.0 + lo) * 4.0 * cos_o);
+        return Some(BsdfSample { dir, weight, pdf, specular: false });
+    }
+    if color.max_component() <= 0.0 {
+        return None;
+    }
+    let local = cosine_hemisphere(u[1], u[2]);
+    let dir = to_world(local, ns).normalize();
+    Some(BsdfSample { dir, weight: color, pdf: local.z * INV_PI, specular: false })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::sampler::Sampler;
+
+    fn material(kind: MaterialKind, color: f32, roughness: f32) -> GpuMaterial {
+        GpuMaterial { color: [color; 3], kind: kind as u32, ior: 1.5, roughness, ..Default::default() }
+    }
+
+    #[test]
+    fn basis_is_orthonormal() {
+        for n in [V3::new(0.0, 0.0, 1.0), V3::new(0.0, 0.0, -1.0), V3::new(0.6, 0.0, 0.8), V3::new(-0.48, 0.6, -0.64)] {
+            let (t, b) = basis(n);
+            for (x, y) in [(t, b), (t, n), (b, n)] {
+                assert!(x.dot(y).abs() < 1e-6);
+            }
+            assert!((t.length() - 1.0).abs() < 1e-6 && (b.length() - 1.0).abs() < 1e-6);
+        }
+    }
+
+    /// The weights of sampled directions average to the directional albedo; for the GGX
+    /// conductor with F0 = 1 that is the Smith masking of its microfacets (< 1), and the
+    /// estimator built from eval/pdf on uniformly drawn directions must agree with it.
+    #[test]
+    fn sampled_weights_agree_with_eval_over_pdf() {
+        let ns = V3::new(0.0, 0.0, 1.0);
+        let wo = V3::new(0.5, 0.0, 0.75f32.sqrt());
+        for m in [material(MaterialKind::Diffuse, 0.8, 0.0), material(MaterialKind::Mirror, 1.0, 0.3)] {
+            let mut rng = Sampler::new(1, 2, 3);
+            let n = 200_000;
+            let (mut by_sampling, mut by_uniform) = (0.0f64, 0.0f64);
+            for _ in 0..n {
+                let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+                if let Some(s) = sample(&m, wo, ns, true, u) {
+                    by_sampling += s.weight.x as f64;
+                    // The density the sampler reports is what eval reports for that direction.
+                    let (_, pdf) = eval(&m, wo, s.dir, ns);
+                    assert!((pdf - s.pdf).abs() <= 1e-3 * s.pdf.max(1.0), "pdf {pdf} vs {}", s.pdf);
+                }
+                // Uniform hemisphere directions: ∫ f cos dω = E[f cos · 2π].
+                let z = rng.next_f32();
+                let phi = 2.0 * PI * rng.next_f32();
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let wi = V3::new(r * phi.cos(), r * phi.sin(), z);
+                by_uniform += eval(&m, wo, wi, ns).0.x as f64 * 2.0 * PI as f64;
+            }
+            let (a, b) = (by_sampling / n as f64, by_uniform / n as f64);
+            assert!((a - b).abs() < 0.02, "kind {}: sampled {a} vs uniform {b}", m.kind);
+            assert!(a <= 1.0 + 1e-3, "energy is conserved: {a}");
+        }
+        // Lambertian albedo is its colour exactly.
+        let mut rng = Sampler::new(0, 0, 0);
+        let d = material(MaterialKind::Diffuse, 0.8, 0.0);
+        let s = sample(&d, wo, ns, true, [rng.next_f32(), rng.next_f32(), rng.next_f32()]).unwrap();
+        assert_eq!(s.weight, V3::splat(0.8));
+    }
+
+    fn pbr(base: f32, metallic: f32, roughness: f32) -> GpuMaterial {
+        GpuMaterial { color: [base; 3], kind: MaterialKind::Pbr as u32, roughness, metallic, ..Default::default() }
+    }
+
+    /// The albedo of the pbr material from `wo`, by sampling (mean weight), and by integrating
+    /// eval over uniform directions; and the largest disagreement between a sample's density
+    /// and what eval reports for its direction.
+    fn pbr_albedo(m: &GpuMaterial, wo: V3<f32>, n: usize) -> (f64, f64) {
+        let ns = V3::new(0.0, 0.0, 1.0);
+        let mut rng = Sampler::new(9, 8, 7);
+        let (mut by_sampling, mut by_uniform) = (0.0f64, 0.0f64);
+        for _ in 0..n {
+            let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+            if let Some(s) = sample(m, wo, ns, true, u) {
+                by_sampling += s.weight.x as f64;
+                let (_, pdf) = eval(m, wo, s.dir, ns);
+                assert!((pdf - s.pdf).abs() <= 1e-3 * s.pdf.max(1.0), "pdf {pdf} vs {}", s.pdf);
+            }
+            let z = rng.next_f32();
+            let phi = 2.0 * PI * rng.next_f32();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            by_uniform += eval(m, wo, V3::new(r * phi.cos(), r * phi.sin(), z), ns).0.x as f64 * 2.0 * PI as f64;
+        }
+        (by_sampling / n as f64, by_uniform / n as f64)
+    }
+
+    /// The white furnace: a white pbr material, metal or not, smooth or rough, reflects all
+    /// light at every angle (the compensation works), and its samples agree with eval.
+    #[test]
+    fn pbr_white_furnace_keeps_the_energy() {
+        for (metallic, roughness) in [(0.0, 0.5), (1.0, 0.3), (1.0, 1.0), (0.0, 1.0), (0.5, 0.7), (0.0, 0.05)] {
+            for cos in [0.95f32, 0.5, 0.15] {
+                let wo = V3::new((1.0 - cos * cos).sqrt(), 0.0, cos);
+                let (a, b) = pbr_albedo(&pbr(1.0, metallic, roughness), wo, 100_000);
+                assert!((a - 1.0).abs() < 0.02, "metal {metallic} r {roughness} μ {cos}: sampled albedo {a}");
+                if roughness >= 0.5 {
+                    // Uniform directions cannot resolve a sharp lobe; a wide one they can.
+                    assert!((b - 1.0).abs() < 0.03, "metal {metallic} r {roughness} μ {cos}: integrated {b}");
+                }
+            }
+        }
+    }
+
+    /// A black dielectric base keeps only the coat (a few per cent, more at grazing angles);
+    /// a grey metal reflects about its colour; metalness blends continuously.
+    #[test]
+    fn pbr_albedo_follows_base_metal_and_angle() {
+        let wo = V3::new(0.0, 0.0, 1.0);
+        let (coat, _) = pbr_albedo(&pbr(0.0, 0.0, 0.5), wo, 50_000);
+        assert!((0.03..0.06).contains(&coat), "coat at normal incidence: {coat}");
+        let grazing = V3::new(0.99f32, 0.0, (1.0f32 - 0.98).sqrt());
+        let (coat_grazing, _) = pbr_albedo(&pbr(0.0, 0.0, 0.5), grazing, 50_000);
+        assert!(coat_grazing > 2.0 * coat, "Fresnel grows at grazing angles: {coat_grazing} vs {coat}");
+        let (metal, _) = pbr_albedo(&pbr(0.5, 1.0, 0.5), wo, 50_000);
+        assert!((metal - 0.5).abs() < 0.03, "grey metal: {metal}");
+        let (half, _) = pbr_albedo(&pbr(0.5, 0.5, 0.5), wo, 50_000);
+        let (dielectric, _) = pbr_albedo(&pbr(0.5, 0.0, 0.5), wo, 50_000);
+        assert!((half - 0.5 * (metal + dielectric)).abs() < 0.02, "blend {half} of {metal} and {dielectric}");
+    }
+
+    #[test]
+    fn dielectric_chooses_reflection_with_the_fresnel_probability() {
+        let m = material(MaterialKind::Dielectric, 1.0, 0.0);
+        let ns = V3::new(0.0, 0.0, 1.0);
+        let wo = V3::new(0.0, 0.0, 1.0);
+        // Normal incidence on glass reflects 4 %.
+        let r = sample(&m, wo, ns, true, [0.03, 0.5, 0.5]).unwrap();
+        assert_eq!(r.dir, V3::new(0.0, 0.0, 1.0));
+        let t = sample(&m, wo, ns, true, [0.05, 0.5, 0.5]).unwrap();
+        assert!((t.dir.z + 1.0).abs() < 1e-6, "straight through: {:?}", t.dir);
+        assert!((t.weight.x - 1.0 / 2.25).abs() < 1e-6, "radiance compressed by 1/η²");
+        // Leaving the glass expands it again.
+        let out = sample(&m, wo, ns, false, [0.05, 0.5, 0.5]).unwrap();
+        assert!((out.weight.x - 2.25).abs() < 1e-5);
+    }
+}

@@ -1,0 +1,184 @@
+//! Image formation shared by both backends, as stages named like the shaders:
+//! [`camera`] (`camera.wgsl`), [`spawn`] (`spawn.wgsl`), [`shade`] (`shade.wgsl`, Whitted),
+//! and for path tracing [`sampler`] (`sampler.wgsl`), [`bsdf`] (`bsdf.wgsl`), [`emitters`]
+//! (`emitters.wgsl`) and [`path`] (`modules/path.wgsl`); [`texture`] (`texture.wgsl`) and
+//! [`environment`] (`environment.wgsl`) for both modes.
+//! The CPU backend runs these functions; the GPU runs their WGSL twins.
+
+pub mod bsdf;
+pub mod camera;
+pub mod emitters;
+pub mod environment;
+pub mod flatten;
+pub mod microfacet;
+pub mod path;
+pub mod pbr;
+pub mod sampler;
+pub mod shade;
+pub mod spawn;
+pub mod surface;
+pub mod texture;
+
+use crate::accel::{Bvh, WideBvh};
+use crate::layout::{FlatScene, FrameParams};
+use crate::primitives::Primitives;
+use crate::scene::Scene;
+use std::time::{Duration, Instant};
+
+/// A scene made ready for rendering: flattened, with its BVH built (the binary tree the GPU
+/// reads, and its 8-wide form the CPU walks).
+pub struct Prepared {
+    pub scene: Scene,
+    pub prims: Primitives<f32>,
+    pub bvh: Bvh,
+    pub wide: WideBvh,
+    pub gpu: FlatScene,
+    /// Time spent building the BVH (the binary tree).
+    pub build_time: Duration,
+    /// Time spent preparing the whole scene: its primitives, both trees and the GPU layout
+    /// (materials, lights, emitters, textures, environment) included.
+    pub prepare_time: Duration,
+}
+
+/// Memory [`Prepared`] allocates per bounded primitive, at most: the flattened primitive
+/// (48 bytes for a triangle), the build's record and reference (36), the binary tree (up to
+/// 64; 36 typical), its 8-wide form (about 72: nodes and leaf blocks with vertex copies), and
+/// the GPU layout (the triangle in scene order and in leaf order, 48 bytes each, and the
+/// 64-byte two-child nodes: about 125). 306 measured on the bumpy torus, rounded up with room.
+pub const BYTES_PER_PRIMITIVE: u64 = 352;
+
+/// A scene too large for this machine, found before anything is allocated for it.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "preparing {primitives} primitives needs about {} MiB ({BYTES_PER_PRIMITIVE} bytes each for the BVH and the CPU and GPU layouts), more than the {} MiB of memory available",
+    need / (1 << 20),
+    available / (1 << 20)
+)]
+pub struct TooLarge {
+    pub primitives: u64,
+    pub need: u64,
+    pub available: u64,
+}
+
+/// Memory the system can give without swapping (`MemAvailable`), where it says.
+pub fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Whether preparing `scene` fits in `available` bytes (no limit when unknown).
+pub fn check_memory(scene: &Scene, available: Option<u64>) -> Result<(), TooLarge> {
+    let primitives = scene.objects.iter().map(|o| o.geometry.primitive_count() as u64).sum::<u64>();
+    let need = primitives.saturating_mul(BYTES_PER_PRIMITIVE);
+    match available {
+        Some(available) if need > available => Err(TooLarge { primitives, need, available }),
+        _ => Ok(()),
+    }
+}
+
+impl Prepared {
+    /// Flattens `scene` and builds its BVH over the objects whose `visible` entry is true (a
+    /// missing entry counts as visible). Hidden objects' primitives are left out; every other
+    /// primitive keeps its object id, so object numbers mean what they mean in the file.
+    pub fn with_visible(scene: Scene, visible: &[bool]) -> Self {
+        if visible.iter().all(|&v| v) {
+            return Self::new(scene);
+        }
+        let start = Instant::now();
+        let shown = |object: u32| visible.get(object as usize).copied().unwrap_or(true);
+        let mut prims = Primitives::<f32>::from_scene(&scene);
+        prims.spheres.retain(|p| shown(p.tag.object));
+        prims.cylinders.retain(|p| shown(p.tag.object));
+        prims.triangles.retain(|p| shown(p.tag.object));
+        prims.planes.retain(|p| shown(p.tag.object));
+        Self::from_prims(scene, prims, start)
+    }
+
+    /// [`Prepared::new`] after checking that the scene fits in the memory available now.
+    pub fn try_new(scene: Scene) -> Result<Self, TooLarge> {
+        check_memory(&scene, available_memory())?;
+        Ok(Self::new(scene))
+    }
+
+    pub fn new(scene: Scene) -> Self {
+        let start = Instant::now();
+        let prims = Primitives::<f32>::from_scene(&scene);
+        Self::from_prims(scene, prims, start)
+    }
+
+    /// Builds the trees and GPU layout over `prims` (flattened from `scene`, perhaps with
+    /// objects left out); `start` is when the preparation began.
+    pub fn from_prims(scene: Scene, prims: Primitives<f32>, start: Instant) -> Self {
+        let built = Instant::now();
+        let bvh = Bvh::build(&prims);
+        let build_time = built.elapsed();
+        let wide = WideBvh::new(&bvh, &prims);
+        let gpu = FlatScene::new(&scene, &prims, &bvh);
+        Self { scene, prims, bvh, wide, gpu, build_time, prepare_time: start.elapsed() }
+    }
+
+    /// The frame parameters for rendering the whole image at `width`×`height`.
+    pub fn frame(&self, width: u32, height: u32) -> FrameParams {
+        let s = &self.scene.render;
+        let mut f = camera::frame(&self.scene.camera, width, height);
+        f.spp = s.spp;
+        f.max_depth = s.max_depth;
+        f.background = s.background.map(|c| c as f32);
+        f.ambient = s.ambient.map(|c| c as f32);
+        f.num_lights = self.gpu.lights.len() as u32;
+        f.num_emitters = self.gpu.emitters.len() as u32;
+        f.emitter_norm = self.gpu.emitter_norm;
+        f.rr_depth = path::RR_DEPTH;
+        f.tile_size = [width, height];
+        f.out_pitch = width;
+        if !self.gpu.environment.is_empty() {
+            f.flags |= crate::layout::FRAME_ENVIRONMENT;
+        }
+        f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scenes_beyond_the_memory_available_are_refused_before_preparing() {
+        let scene = crate::scene::procedural::torus_scene(20_000);
+        let n = scene.triangle_count() as u64;
+        let err = check_memory(&scene, Some(n * BYTES_PER_PRIMITIVE - 1)).unwrap_err();
+        assert_eq!((err.primitives, err.need), (n, n * BYTES_PER_PRIMITIVE));
+        let msg = err.to_string();
+        assert!(msg.contains(&format!("{n} primitives")) && msg.contains("MiB of memory available"), "{msg}");
+        assert!(check_memory(&scene, Some(n * BYTES_PER_PRIMITIVE)).is_ok());
+        assert!(check_memory(&scene, None).is_ok());
+    }
+
+    /// The estimate covers what preparing really holds: the sizes of the structures built for
+    /// a mesh stay below BYTES_PER_PRIMITIVE per triangle.
+    #[test]
+    fn the_memory_estimate_covers_the_structures_built() {
+        let prep = Prepared::new(crate::scene::procedural::torus_scene(100_000));
+        let n = prep.prims.triangles.len();
+        let bytes = |len: usize, size: usize| (len * size) as u64;
+        let held = bytes(n, size_of_val(&prep.prims.triangles[0]))
+            + bytes(prep.bvh.nodes.len(), size_of::<crate::accel::BvhNode>())
+            + bytes(prep.bvh.prim_refs.len(), 4)
+            + prep.wide.bytes() as u64
+            + bytes(prep.gpu.triangles.len(), size_of::<crate::layout::GpuTriangle>())
+            + bytes(prep.gpu.leaf_triangles.len(), size_of::<crate::accel::gpu_bvh::GpuLeafTriangle>())
+            + bytes(prep.gpu.nodes.len(), size_of::<crate::accel::gpu_bvh::GpuNode>())
+            + bytes(prep.gpu.shape_refs.len(), 4)
+            // The build's records, freed before the collapse.
+            + bytes(n, 32);
+        eprintln!("prepared: {} bytes per triangle", held / n as u64);
+        assert!(held < n as u64 * BYTES_PER_PRIMITIVE, "{} bytes per triangle", held / n as u64);
+        assert!(
+            held > n as u64 * BYTES_PER_PRIMITIVE / 2,
+            "the estimate is far too high: {} per triangle",
+            held / n as u64
+        );
+    }
+}

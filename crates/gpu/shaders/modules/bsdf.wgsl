@@ -1,0 +1,186 @@
+// Scattering for the path tracer: twin of crates/core/src/render/bsdf.rs (Lambert, smooth and GGX-rough
+// conductors with Schlick's Fresnel, smooth dielectrics, glTF's metallic-roughness material). wo points away from the surface, ns
+// is the normal on wo's side; "weight" is f |cos| / pdf.
+#define_import_path strahl::bsdf
+
+#import strahl::types::{Material, MAT_MIRROR, MAT_DIELECTRIC, MAT_PBR}
+#import strahl::shade::{fresnel_dielectric, reflect_dir, refract_dir}
+#import strahl::microfacet::{schlick, ggx_d, ggx_lambda, ggx_sample_visible}
+#ifdef PBR
+#import strahl::pbr::{pbr_lobes, pbr_fresnel}
+#endif
+
+const PI: f32 = 3.14159265358979;
+const INV_PI: f32 = 0.31830988618379067;
+const MIN_ROUGHNESS: f32 = #{MIN_ROUGHNESS};
+
+struct BsdfSample {
+    dir: vec3<f32>,
+    weight: vec3<f32>,
+    pdf: f32,
+    specular: bool,
+    // false: the path ends here.
+    valid: bool,
+}
+
+struct BsdfEval {
+    f_cos: vec3<f32>,
+    pdf: f32,
+}
+
+fn is_specular(m: Material) -> bool {
+    return m.kind == MAT_DIELECTRIC || (m.kind == MAT_MIRROR && m.roughness < MIN_ROUGHNESS);
+}
+
+// Orthonormal basis around n (Duff et al., JCGT 2017): columns t, b.
+fn basis_t(n: vec3<f32>) -> vec3<f32> {
+    let sign = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (sign + n.z);
+    return vec3<f32>(1.0 + sign * n.x * n.x * a, sign * n.x * n.y * a, -sign * n.x);
+}
+
+fn basis_b(n: vec3<f32>) -> vec3<f32> {
+    let sign = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (sign + n.z);
+    return vec3<f32>(n.x * n.y * a, sign + n.y * n.y * a, -n.y);
+}
+
+fn to_world(v: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    return basis_t(n) * v.x + basis_b(n) * v.y + n * v.z;
+}
+
+fn to_local(v: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(v, basis_t(n)), dot(v, basis_b(n)), dot(v, n));
+}
+
+fn cosine_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
+    let r = sqrt(u1);
+    let phi = 2.0 * PI * u2;
+    return vec3<f32>(r * cos(phi), r * sin(phi), sqrt(max(1.0 - u1, 0.0)));
+}
+
+#ifdef PBR
+fn pbr_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>) -> BsdfEval {
+    let cos_o = dot(wo, ns);
+    let cos_i = dot(wi, ns);
+    if cos_o <= 0.0 || cos_i <= 0.0 {
+        return BsdfEval(vec3<f32>(0.0), 0.0);
+    }
+    let l = pbr_lobes(m, cos_o);
+    var f_cos = l.diffuse * (cos_i * INV_PI);
+    var pdf = (1.0 - l.p_spec) * cos_i * INV_PI;
+    let h = normalize(wo + wi);
+    let cos_h = dot(h, ns);
+    if cos_h > 0.0 {
+        let d = ggx_d(l.alpha, cos_h);
+        let lo = ggx_lambda(l.alpha, cos_o);
+        let li = ggx_lambda(l.alpha, cos_i);
+        let k = d / (4.0 * cos_o);
+        let f = pbr_fresnel(l, dot(wo, h));
+        f_cos += f * (k / (1.0 + lo + li));
+        pdf += l.p_spec * k / (1.0 + lo);
+    }
+    return BsdfEval(f_cos, pdf);
+}
+
+fn pbr_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, u: vec3<f32>) -> BsdfSample {
+    let none = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false);
+    let cos_o = dot(wo, ns);
+    if cos_o <= 0.0 {
+        return none;
+    }
+    let l = pbr_lobes(m, cos_o);
+    if l.p_spec <= 0.0 && max(l.diffuse.x, max(l.diffuse.y, l.diffuse.z)) <= 0.0 {
+        return none;
+    }
+    var dir: vec3<f32>;
+    if u.x < l.p_spec {
+        let h = to_world(ggx_sample_visible(l.alpha, to_local(wo, ns), u.y, u.z), ns);
+        dir = reflect_dir(-wo, h);
+    } else {
+        dir = normalize(to_world(cosine_hemisphere(u.y, u.z), ns));
+    }
+    let ev = pbr_eval(m, wo, dir, ns);
+    if !(ev.pdf > 0.0) {
+        return none;
+    }
+    return BsdfSample(dir, ev.f_cos / ev.pdf, ev.pdf, false, true);
+}
+#endif
+
+fn bsdf_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>) -> BsdfEval {
+#ifdef PBR
+    if m.kind == MAT_PBR {
+        return pbr_eval(m, wo, wi, ns);
+    }
+#endif
+    let cos_i = dot(wi, ns);
+    if cos_i <= 0.0 {
+        return BsdfEval(vec3<f32>(0.0), 0.0);
+    }
+#ifdef MIRROR
+    if m.kind == MAT_MIRROR {
+        let alpha = m.roughness;
+        let cos_o = dot(wo, ns);
+        let h = normalize(wo + wi);
+        let cos_h = dot(h, ns);
+        if cos_o <= 0.0 || cos_h <= 0.0 {
+            return BsdfEval(vec3<f32>(0.0), 0.0);
+        }
+        let d = ggx_d(alpha, cos_h);
+        let lo = ggx_lambda(alpha, cos_o);
+        let li = ggx_lambda(alpha, cos_i);
+        let g2 = 1.0 / (1.0 + lo + li);
+        let g1 = 1.0 / (1.0 + lo);
+        let f = schlick(m.color, dot(wo, h));
+        let k = d / (4.0 * cos_o);
+        return BsdfEval(f * (k * g2), k * g1);
+    }
+#endif
+    return BsdfEval(m.color * (cos_i * INV_PI), cos_i * INV_PI);
+}
+
+fn bsdf_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<f32>) -> BsdfSample {
+    let none = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false);
+#ifdef PBR
+    if m.kind == MAT_PBR {
+        return pbr_sample(m, wo, ns, u);
+    }
+#endif
+#ifdef DIELECTRIC
+    if m.kind == MAT_DIELECTRIC {
+        let cos_i = dot(wo, ns);
+        let eta = select(1.0 / m.ior, m.ior, front);
+        let f = fresnel_dielectric(cos_i, eta);
+        if u.x < f {
+            return BsdfSample(reflect_dir(-wo, ns), vec3<f32>(1.0), 0.0, true, true);
+        }
+        return BsdfSample(refract_dir(-wo, ns, cos_i, 1.0 / eta), m.color / (eta * eta), 0.0, true, true);
+    }
+#endif
+#ifdef MIRROR
+    if m.kind == MAT_MIRROR {
+        let cos_o = dot(wo, ns);
+        if m.roughness < MIN_ROUGHNESS {
+            return BsdfSample(reflect_dir(-wo, ns), schlick(m.color, cos_o), 0.0, true, true);
+        }
+        let alpha = m.roughness;
+        let h = to_world(ggx_sample_visible(alpha, to_local(wo, ns), u.y, u.z), ns);
+        let dir = reflect_dir(-wo, h);
+        let cos_i = dot(dir, ns);
+        if cos_i <= 0.0 || cos_o <= 0.0 {
+            return none;
+        }
+        let lo = ggx_lambda(alpha, cos_o);
+        let li = ggx_lambda(alpha, cos_i);
+        let weight = schlick(m.color, dot(wo, h)) * ((1.0 + lo) / (1.0 + lo + li));
+        let pdf = ggx_d(alpha, dot(h, ns)) / ((1.0 + lo) * 4.0 * cos_o);
+        return BsdfSample(dir, weight, pdf, false, true);
+    }
+#endif
+    if max(m.color.x, max(m.color.y, m.color.z)) <= 0.0 {
+        return none;
+    }
+    let local = cosine_hemisphere(u.y, u.z);
+    return BsdfSample(normalize(to_world(local, ns)), m.color, local.z * INV_PI, false, true);
+}

@@ -1,0 +1,194 @@
+//! The values the shaders share with the host, written once, in Rust: every `#{NAME}` in a
+//! shader source is replaced by the value of `NAME` below, as a WGSL literal, before the source
+//! is composed. So a material kind, a flag bit, a stack depth or a tolerance has one definition
+//! that the CPU twin and the GPU both read, instead of two kept in step by comments.
+
+use strahl_core::math::Real;
+
+/// A shared value and the WGSL literal it becomes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Shared {
+    U32(u32),
+    F32(f32),
+    /// A table: the comma-separated literals of its values (for an `array<f32, N>(...)`).
+    F32s(&'static [f32]),
+}
+
+impl Shared {
+    /// The WGSL literal: `7u`, or an f32 as an exact hexadecimal float (`0x1.000000p-1f`), which
+    /// no decimal rounding can change.
+    pub fn literal(self) -> String {
+        match self {
+            Shared::U32(v) => format!("{v}u"),
+            Shared::F32(v) => hex_float(v),
+            Shared::F32s(v) => v.iter().map(|&x| hex_float(x)).collect::<Vec<_>>().join(", "),
+        }
+    }
+}
+
+/// `v` (finite) as a WGSL hexadecimal float literal with an `f` suffix.
+fn hex_float(v: f32) -> String {
+    assert!(v.is_finite(), "shared floats are finite");
+    let bits = v.to_bits();
+    let sign = if bits >> 31 != 0 { "-" } else { "" };
+    let exp = ((bits >> 23) & 0xff) as i32;
+    let mantissa = (bits & 0x7f_ffff) << 1; // 24 bits: six hexadecimal digits
+    match exp {
+        0 if mantissa == 0 => format!("{sign}0.0f"),
+        0 => format!("{sign}0x0.{mantissa:06x}p-126f"),
+        _ => format!("{sign}0x1.{mantissa:06x}p{}f", exp - 127),
+    }
+}
+
+/// Every shared value, by the name the shaders use.
+pub fn constants() -> Vec<(&'static str, Shared)> {
+    use Shared::{F32, F32s, U32};
+    use strahl_core::accel::gpu_bvh as bvh;
+    use strahl_core::geometry::Part;
+    use strahl_core::layout as g;
+    use strahl_core::primitives::{PrimKind, PrimRef};
+    use strahl_core::render::{bsdf, microfacet, path, pbr, sampler, shade, spawn};
+    use strahl_core::scene::MaterialKind;
+    use strahl_core::scene::texture::Wrap;
+    vec![
+        // Primitive references (primitives::PrimRef) and the parts of a surface.
+        ("KIND_SPHERE", U32(PrimKind::Sphere as u32)),
+        ("KIND_CYLINDER", U32(PrimKind::Cylinder as u32)),
+        ("KIND_TRIANGLE", U32(PrimKind::Triangle as u32)),
+        ("KIND_PLANE", U32(PrimKind::Plane as u32)),
+        ("INDEX_BITS", U32(PrimRef::INDEX_BITS)),
+        ("INDEX_MASK", U32(PrimRef::MAX_INDEX)),
+        ("PART_SURFACE", U32(Part::Surface as u32)),
+        ("PART_CAP_P1", U32(Part::CapP1 as u32)),
+        ("PART_CAP_P2", U32(Part::CapP2 as u32)),
+        // Materials, lights, emitters and buffer flags (layout).
+        ("MAT_MIRROR", U32(MaterialKind::Mirror as u32)),
+        ("MAT_DIELECTRIC", U32(MaterialKind::Dielectric as u32)),
+        ("MAT_EMISSIVE", U32(MaterialKind::Emissive as u32)),
+        ("MAT_PBR", U32(MaterialKind::Pbr as u32)),
+        ("MATERIAL_TWO_SIDED", U32(g::MATERIAL_TWO_SIDED)),
+        ("MATERIAL_UNLIT", U32(g::MATERIAL_UNLIT)),
+        ("MATERIAL_ALPHA_MASK", U32(g::MATERIAL_ALPHA_MASK)),
+        ("MATERIAL_ALPHA_BLEND", U32(g::MATERIAL_ALPHA_BLEND)),
+        ("MATERIAL_ALPHA", U32(g::MATERIAL_ALPHA)),
+        ("LIGHT_POINT", U32(g::LIGHT_POINT)),
+        ("LIGHT_STAND_IN", U32(g::LIGHT_STAND_IN)),
+        ("FRAME_ACCUMULATE", U32(g::FRAME_ACCUMULATE)),
+        ("VIEW_MODE_SHIFT", U32(g::VIEW_MODE_SHIFT)),
+        ("VIEW_NORMALS", U32(g::VIEW_NORMALS)),
+        ("VIEW_DEPTH", U32(g::VIEW_DEPTH)),
+        ("VIEW_COST", U32(g::VIEW_COST)),
+        ("FRAME_ENVIRONMENT", U32(g::FRAME_ENVIRONMENT)),
+        ("QUERY_FOUND", U32(g::QUERY_FOUND)),
+        ("QUERY_ENTER", U32(g::QUERY_ENTER)),
+        // Textures and the environment (layout, scene::texture::Wrap). The environment's flags
+        // are not called ENV_MAP: that name is a feature's shader def.
+        ("TEXTURE_WRAP_U_SHIFT", U32(g::TEXTURE_WRAP_U_SHIFT)),
+        ("TEXTURE_WRAP_V_SHIFT", U32(g::TEXTURE_WRAP_V_SHIFT)),
+        ("TEXTURE_NEAREST", U32(g::TEXTURE_NEAREST)),
+        ("TEXTURE_LINEAR_RGB", U32(g::TEXTURE_LINEAR_RGB)),
+        ("TEXTURE_DATA", U32(g::TEXTURE_DATA)),
+        ("TEXTURE_UV1", U32(g::TEXTURE_UV1)),
+        ("ATTR_NORMALS", U32(g::ATTR_NORMALS)),
+        ("ATTR_COLORS", U32(g::ATTR_COLORS)),
+        ("WRAP_REPEAT", U32(Wrap::Repeat as u32)),
+        ("WRAP_CLAMP", U32(Wrap::Clamp as u32)),
+        ("WRAP_MIRROR", U32(Wrap::Mirror as u32)),
+        ("ENV_FLAG_MAP", U32(g::ENV_MAP)),
+        ("ENV_FLAG_UNIFORM", U32(g::ENV_UNIFORM)),
+        // The GPU BVH layout (accel::gpu_bvh) and its traversal stack.
+        ("LINK_LEAF", U32(bvh::LINK_LEAF)),
+        ("LINK_SHAPES", U32(bvh::LINK_SHAPES)),
+        ("LINK_COUNT_SHIFT", U32(bvh::LINK_COUNT_SHIFT)),
+        ("LINK_FIRST_MASK", U32(bvh::LINK_FIRST_MASK)),
+        ("LINK_EMPTY", U32(bvh::LINK_EMPTY)),
+        ("GPU_STACK", U32(bvh::MAX_DEPTH)),
+        // 1 + 2γ(3), the far-distance growth of the slab test (accel::traverse::slab).
+        ("SLAB_GROW", F32(1.0 + 2.0 * <f32 as Real>::gamma_bound(3))),
+        // Shading and sampling (render::*).
+        ("WHITTED_STACK", U32(shade::WHITTED_STACK as u32)),
+        ("SHADOW_PASSES", U32(shade::SHADOW_PASSES)),
+        ("SHADOW_REACH", F32(path::SHADOW_REACH)),
+        ("MIN_ROUGHNESS", F32(bsdf::MIN_ROUGHNESS)),
+        ("MIN_PBR_ALPHA", F32(pbr::MIN_PBR_ALPHA)),
+        ("PBR_F0", F32(pbr::PBR_F0)),
+        ("GGX_ROUGHNESS_STEPS", U32(microfacet::ROUGHNESS_STEPS as u32)),
+        ("GGX_COS_STEPS", U32(microfacet::COS_STEPS as u32)),
+        ("GGX_ALBEDO", F32s(microfacet::table())),
+        ("GGX_ALBEDO_LEN", U32(microfacet::table().len() as u32)),
+        ("MIN_ULP", F32(spawn::MIN_ULP)),
+        ("PCG_MULT", U32(sampler::PCG_MULT)),
+        ("PCG_INC", U32(sampler::PCG_INC)),
+        ("F32_MAX", F32(f32::MAX)),
+        // Workgroup sizes the host dispatches by.
+        ("TILE_WORKGROUP", U32(super::tiles::WORKGROUP)),
+        ("TRACE_WORKGROUP", U32(super::trace::WORKGROUP as u32)),
+        ("WAVEFRONT_WORKGROUP", U32(super::wavefront::WORKGROUP)),
+        // The wavefront tracer's counters (backend::gpu::wavefront::counter).
+        ("WF_PATHS_IN", U32(super::wavefront::counter::PATHS_IN)),
+        ("WF_PATHS_OUT", U32(super::wavefront::counter::PATHS_OUT)),
+        ("WF_SHADOWS_OUT", U32(super::wavefront::counter::SHADOWS_OUT)),
+        ("WF_SHADOWS_IN", U32(super::wavefront::counter::SHADOWS_IN)),
+        ("WF_ARGS_PATHS", U32(super::wavefront::counter::ARGS_PATHS)),
+        ("WF_ARGS_SHADOWS", U32(super::wavefront::counter::ARGS_SHADOWS)),
+    ]
+}
+
+/// `source` with every `#{NAME}` of a shared value replaced by its literal.
+pub fn substitute(source: &str) -> String {
+    let mut out = source.to_string();
+    for (name, value) in constants() {
+        out = out.replace(&format!("#{{{name}}}"), &value.literal());
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hex_floats_are_exact() {
+        for v in [1.0f32, 0.5, -2.75, f32::MAX, f32::MIN_POSITIVE, 1e-40, 0.999_755_86, 1.000_000_4, 0.0] {
+            let lit = hex_float(v);
+            // Parse the literal back: sign, mantissa digits, binary exponent.
+            let body = lit.trim_start_matches('-').trim_end_matches('f');
+            let parsed = if body == "0.0" {
+                0.0
+            } else {
+                let (m, e) = body.trim_start_matches("0x").split_once('p').unwrap();
+                let (int, frac) = m.split_once('.').unwrap();
+                let mant = int.parse::<f64>().unwrap() + u32::from_str_radix(frac, 16).unwrap() as f64 / 16f64.powi(6);
+                mant * 2f64.powi(e.parse().unwrap())
+            };
+            let parsed = if lit.starts_with('-') { -parsed } else { parsed };
+            assert_eq!(parsed as f32, v, "{lit}");
+        }
+    }
+
+    #[test]
+    fn every_placeholder_in_the_shaders_is_a_shared_value() {
+        let sources = super::super::shaders::MODULES.iter().map(|&(f, s)| (f, s)).chain(
+            [
+                super::super::Program::Whitted,
+                super::super::Program::Path,
+                super::super::Program::Wavefront,
+                super::super::Program::Trace,
+                super::super::Program::View,
+            ]
+            .map(|p| p.source()),
+        );
+        let mut used = std::collections::HashSet::new();
+        for (file, src) in sources {
+            let out = substitute(src);
+            assert!(!out.contains("#{"), "{file}: a #{{NAME}} without a shared value");
+            for (name, _) in constants() {
+                if src.contains(&format!("#{{{name}}}")) {
+                    used.insert(name);
+                }
+            }
+        }
+        let unused: Vec<_> = constants().into_iter().map(|(n, _)| n).filter(|n| !used.contains(n)).collect();
+        assert!(unused.is_empty(), "shared values no shader uses: {unused:?}");
+    }
+}
