@@ -1,7 +1,8 @@
 //! ARCHITECTURE.md's table of WGSL files and their Rust twins agrees with the shaders: every
 //! WGSL file has a row, each row names the Rust files that the shader's first comment names
 //! (its twin, or "none" where the comment says it has no CPU twin, with its host), and every
-//! named file exists.
+//! named file exists. It also checks the layering: no import circles within a crate, and no
+//! source file outside `tests/` over 800 lines.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -106,4 +107,213 @@ fn the_path_finder_reads_paths_as_written() {
     );
     let want = ["crates/core/src/render/path.rs", "crates/gpu/src/lib.rs", "src/main.rs"];
     assert_eq!(got, want.iter().map(|s| s.to_string()).collect::<BTreeSet<_>>());
+}
+
+/// The Rust modules of one crate's `src/` folder: module path (`accel::bvh`, "" for the crate
+/// root) → the file's text before its first `#[cfg(test)]` module, without comment lines.
+/// Files named `tests.rs` are test modules and left out.
+fn crate_modules(src: &Path) -> BTreeMap<String, String> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                out.push(p);
+            }
+        }
+    }
+    let mut files = Vec::new();
+    walk(src, &mut files);
+    let mut mods = BTreeMap::new();
+    for f in files {
+        let rel = f.strip_prefix(src).unwrap().with_extension("");
+        let mut segs: Vec<String> = rel.iter().map(|s| s.to_string_lossy().into_owned()).collect();
+        if segs.last().is_some_and(|s| s == "tests") {
+            continue;
+        }
+        if segs.last().is_some_and(|s| s == "mod" || s == "lib" || s == "main") {
+            segs.pop();
+        }
+        let text = std::fs::read_to_string(&f).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        let end = (0..lines.len())
+            .find(|&i| lines[i].trim() == "#[cfg(test)]" && lines.get(i + 1).is_some_and(|l| l.contains("mod ")))
+            .unwrap_or(lines.len());
+        let code: Vec<&str> = lines[..end].iter().copied().filter(|l| !l.trim_start().starts_with("//")).collect();
+        mods.insert(segs.join("::"), code.join("\n"));
+    }
+    mods
+}
+
+/// The identifier path that starts at `s` (`a::b::{c, d::e}` gives `a::b::c` and `a::b::d::e`).
+fn paths_at(s: &str) -> Vec<String> {
+    let ident = |t: &str| t.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(t.len());
+    let mut base = Vec::new();
+    let mut rest = s;
+    loop {
+        let n = ident(rest);
+        if n == 0 {
+            break;
+        }
+        base.push(&rest[..n]);
+        rest = &rest[n..];
+        if let Some(r) = rest.strip_prefix("::") {
+            rest = r;
+        } else {
+            break;
+        }
+    }
+    let joined = base.join("::");
+    if !rest.starts_with('{') {
+        return vec![joined];
+    }
+    let inner = &rest[1..rest.find('}').unwrap_or(rest.len())];
+    let mut out: Vec<String> = inner
+        .split(',')
+        .map(str::trim)
+        .filter(|i| !i.is_empty() && *i != "self" && !i.starts_with('{'))
+        .map(|i| format!("{joined}::{}", &i[..ident(i)]))
+        .collect();
+    out.push(joined);
+    out
+}
+
+/// Which modules each module of `mods` names through `crate::` or `super::` paths, resolved
+/// to the longest module prefix; a module's own ancestors are not counted (a file sits in
+/// its folder's module).
+fn import_graph(mods: &BTreeMap<String, String>) -> BTreeMap<String, BTreeSet<String>> {
+    let resolve = |path: &str| {
+        let segs: Vec<&str> = path.split("::").filter(|s| !s.is_empty()).collect();
+        (1..=segs.len()).rev().map(|i| segs[..i].join("::")).find(|m| mods.contains_key(m))
+    };
+    let mut graph = BTreeMap::new();
+    for (m, code) in mods {
+        let mut to = BTreeSet::new();
+        let parent = m.rsplit_once("::").map_or("", |(p, _)| p);
+        for (prefix, base) in [("crate::", String::new()), ("super::", parent.to_string())] {
+            let mut from = 0;
+            while let Some(i) = code[from..].find(prefix).map(|i| i + from) {
+                from = i + prefix.len();
+                if code[..i].ends_with(|c: char| c.is_ascii_alphanumeric() || c == '_') {
+                    continue;
+                }
+                for p in paths_at(&code[from..]) {
+                    let full = if base.is_empty() { p } else { format!("{base}::{p}") };
+                    if let Some(r) = resolve(&full) {
+                        let ancestor = r.is_empty() || m.starts_with(&format!("{r}::"));
+                        if r != *m && !ancestor {
+                            to.insert(r);
+                        }
+                    }
+                }
+            }
+        }
+        graph.insert(m.clone(), to);
+    }
+    graph
+}
+
+/// The circles of `graph`: its strongly connected components of more than one module.
+fn circles(graph: &BTreeMap<String, BTreeSet<String>>) -> Vec<Vec<String>> {
+    // Two modules are on a circle when each reaches the other.
+    let reach = |start: &String| {
+        let mut seen = BTreeSet::new();
+        let mut stack = vec![start.clone()];
+        while let Some(m) = stack.pop() {
+            for n in &graph[&m] {
+                if seen.insert(n.clone()) {
+                    stack.push(n.clone());
+                }
+            }
+        }
+        seen
+    };
+    let reaches: BTreeMap<&String, BTreeSet<String>> = graph.keys().map(|m| (m, reach(m))).collect();
+    let mut done = BTreeSet::new();
+    let mut out = Vec::new();
+    for m in graph.keys() {
+        if done.contains(m) {
+            continue;
+        }
+        let comp: Vec<String> =
+            graph.keys().filter(|n| *n == m || (reaches[m].contains(*n) && reaches[n].contains(m))).cloned().collect();
+        done.extend(comp.iter().cloned());
+        if comp.len() > 1 {
+            out.push(comp);
+        }
+    }
+    out
+}
+
+fn crate_sources() -> Vec<PathBuf> {
+    let mut v = vec![root().join("src")];
+    for e in std::fs::read_dir(root().join("crates")).unwrap() {
+        let p = e.unwrap().path().join("src");
+        if p.is_dir() {
+            v.push(p);
+        }
+    }
+    v.sort();
+    v
+}
+
+#[test]
+fn no_module_imports_one_that_imports_it_back() {
+    let sources = crate_sources();
+    assert!(sources.len() >= 5, "found only {sources:?}");
+    let mut found = Vec::new();
+    for src in &sources {
+        let mods = crate_modules(src);
+        assert!(mods.contains_key(""), "{src:?} has no crate root");
+        for c in circles(&import_graph(&mods)) {
+            found.push(format!("{}: {}", src.strip_prefix(root()).unwrap().display(), c.join(" ⇄ ")));
+        }
+    }
+    assert!(found.is_empty(), "import circles:\n{}", found.join("\n"));
+}
+
+#[test]
+fn the_circle_finder_finds_circles_through_braces_and_super() {
+    let mods: BTreeMap<String, String> = [
+        ("", "pub mod a; pub mod b;"),
+        ("a", "use crate::b::{x, c::y};"),
+        ("b", "fn f() { super::a::g() }"),
+        ("b::c", "use super::super::d;"),
+        ("d", "use crate::b::c::Z;"),
+        ("e", "use crate::{a, d};"),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v.to_string()))
+    .collect();
+    let g = import_graph(&mods);
+    assert_eq!(g["a"], BTreeSet::from(["b".to_string(), "b::c".to_string()]));
+    assert_eq!(g["e"], BTreeSet::from(["a".to_string(), "d".to_string()]));
+    let c = circles(&g);
+    assert_eq!(c, vec![vec!["a".to_string(), "b".to_string()]], "{g:?}");
+}
+
+/// No source file outside `tests/` is longer than this: a longer one holds more than one room.
+const MAX_LINES: usize = 800;
+
+#[test]
+fn no_source_file_outside_tests_is_over_800_lines() {
+    let out = std::process::Command::new("git").args(["ls-files", "-z"]).current_dir(root()).output().unwrap();
+    assert!(out.status.success(), "git ls-files failed");
+    let mut long = Vec::new();
+    let mut checked = 0;
+    for name in out.stdout.split(|&b| b == 0).filter(|n| !n.is_empty()) {
+        let name = String::from_utf8_lossy(name).into_owned();
+        let source = name.ends_with(".rs") || name.ends_with(".wgsl") || name.starts_with("tools/");
+        if !source || name.starts_with("tests/") || !root().join(&name).is_file() {
+            continue;
+        }
+        checked += 1;
+        let lines = std::fs::read_to_string(root().join(&name)).map(|t| t.lines().count()).unwrap_or(0);
+        if lines > MAX_LINES {
+            long.push(format!("{name}: {lines} lines"));
+        }
+    }
+    assert!(checked >= 100, "checked only {checked} files");
+    assert!(long.is_empty(), "over {MAX_LINES} lines:\n{}", long.join("\n"));
 }
