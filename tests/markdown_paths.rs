@@ -7,9 +7,18 @@
 //! where a link's target is relative (resolved from the Markdown file's folder). Words that
 //! start elsewhere (`-o seed.png`, `/out/part-K.exr`) are no repository paths and are left
 //! alone; so are paths that leave the repository (`../shared/...`), and globs and
-//! placeholders (`tests/*.rs`, `src/geometry/<kind>.rs`, `SCENE.toml`), which stand for many
+//! placeholders (`tests/*.rs`, `crates/core/src/geometry/<kind>.rs`, `SCENE.toml`), which stand for many
 //! files.
+//!
+//! Links are checked further, since a renamed heading breaks them as silently as a moved file:
+//! a relative link's `#fragment` into a Markdown file (or `#fragment` alone, into its own file)
+//! must be the id of one of that file's headings, by the slug rule mdBook and GitHub share
+//! ([`slug`]). The book in `docs/` (mdBook) has two rules of its own: its chapters link only
+//! within `docs/src/` (mdBook publishes nothing else, and turns every `.md` link into `.html`),
+//! and `docs/src/SUMMARY.md` lists every chapter there is, each of which exists.
+//! `tools/check-docs` runs this test after building the book.
 
+use std::collections::HashSet;
 use std::fs;
 use std::io::ErrorKind;
 use std::path::{Component, Path, PathBuf};
@@ -31,19 +40,67 @@ struct Named {
     path: String,
 }
 
+/// A relative link of a Markdown file.
+#[derive(Debug)]
+struct Link {
+    line: usize,
+    /// The target from the repository root; empty for a link to a heading of the file itself.
+    path: String,
+    /// What follows `#`, if anything.
+    fragment: Option<String>,
+}
+
 /// What one Markdown file names.
 #[derive(Debug, Default)]
 struct Scan {
     named: Vec<Named>,
     /// Paths outside the repository: not this repository's to check.
     outside: Vec<Named>,
+    /// Every relative link (within the repository), in line order.
+    links: Vec<Link>,
 }
 
-/// The Markdown files git tracks, from the root; without git (or outside a work tree), those
-/// found in the tree, leaving out build output and git's own folder.
+/// The book's sources: mdBook publishes this folder and nothing else.
+const BOOK_SRC: &str = "docs/src";
+/// mdBook's output folder (`build-dir` in `docs/book.toml`), whatever git makes of it.
+const BOOK_OUT: &str = "docs/book";
+
+/// The Markdown files git tracks or would add (new files that no `.gitignore` rule covers),
+/// from the root, and every one under [`BOOK_SRC`], so that a chapter written but not yet
+/// added is checked too; without git (or outside a work tree), those found in the tree,
+/// leaving out build output and git's own folder. Never the book's build output.
 fn markdown_files() -> Vec<PathBuf> {
+    let mut files = git_or_walked_markdown_files();
+    let book = root().join(BOOK_SRC);
+    if book.is_dir() {
+        walk(&book, &mut files);
+    }
+    files.retain(|f| !f.starts_with(BOOK_OUT));
+    files.sort();
+    files.dedup();
+    files
+}
+
+/// The Markdown files below `dir` (absolute), from the root, leaving out build output and
+/// git's own folder.
+fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+    let mut entries: Vec<PathBuf> = fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+    entries.sort();
+    for path in entries {
+        let name = path.file_name().unwrap_or_default();
+        if path.is_dir() {
+            if name != "target" && name != ".git" {
+                walk(&path, out);
+            }
+        } else if path.extension().is_some_and(|e| e == "md") {
+            out.push(path.strip_prefix(root()).unwrap().to_path_buf());
+        }
+    }
+}
+
+fn git_or_walked_markdown_files() -> Vec<PathBuf> {
     let tracked = Command::new("git")
-        .args(["ls-files", "-z", "--", "*.md"])
+        .args(["ls-files", "-z", "--cached", "--others", "--exclude-standard", "--", "*.md"])
         .current_dir(root())
         .output()
         .ok()
@@ -59,22 +116,8 @@ fn markdown_files() -> Vec<PathBuf> {
     if !tracked.is_empty() {
         return tracked;
     }
-    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
-        for entry in fs::read_dir(dir).unwrap() {
-            let path = entry.unwrap().path();
-            let name = path.file_name().unwrap_or_default();
-            if path.is_dir() {
-                if name != "target" && name != ".git" {
-                    walk(&path, out);
-                }
-            } else if path.extension().is_some_and(|e| e == "md") {
-                out.push(path.strip_prefix(root()).unwrap().to_path_buf());
-            }
-        }
-    }
     let mut found = Vec::new();
     walk(&root(), &mut found);
-    found.sort();
     found
 }
 
@@ -247,7 +290,15 @@ impl Scan {
     fn link(&mut self, target: &str, line: usize, dir: &Path) {
         let target = target.strip_prefix('<').and_then(|t| t.strip_suffix('>')).unwrap_or(target);
         let file = target.split(['#', '?']).next().unwrap_or_default();
-        if file.is_empty() || target.contains("://") || target.starts_with("mailto:") || placeholder(file) {
+        let fragment = target.split_once('#').map(|(_, f)| f.to_string());
+        if target.contains("://") || target.starts_with("mailto:") || placeholder(file) {
+            return;
+        }
+        if file.is_empty() {
+            // `#heading`: within the file itself.
+            if fragment.is_some() {
+                self.links.push(Link { line, path: String::new(), fragment });
+            }
             return;
         }
         let joined = match file.strip_prefix('/') {
@@ -255,7 +306,10 @@ impl Scan {
             None => dir.join(file),
         };
         match normalize(&joined) {
-            Some(path) => self.named.push(Named { line, path }),
+            Some(path) => {
+                self.links.push(Link { line, path: path.clone(), fragment });
+                self.named.push(Named { line, path });
+            }
             None => self.outside.push(Named { line, path: target.to_string() }),
         }
     }
@@ -323,7 +377,150 @@ fn scan(text: &str, dir: &Path, top: &[String]) -> Scan {
     }
     scan.named.sort_by_key(|n| n.line);
     scan.outside.sort_by_key(|n| n.line);
+    scan.links.sort_by_key(|n| n.line);
     scan
+}
+
+/// A heading's id, as mdBook (`id_from_content`) and GitHub make it from the heading's text:
+/// lowercase; letters, digits, `_` and `-` kept; each whitespace character a `-`; everything
+/// else (punctuation, symbols) dropped. Markup is gone before: see [`heading_text`].
+fn slug(text: &str) -> String {
+    text.trim()
+        .to_lowercase()
+        .chars()
+        .filter_map(|c| {
+            if c.is_alphanumeric() || c == '_' || c == '-' {
+                Some(c)
+            } else if c.is_whitespace() {
+                Some('-')
+            } else {
+                None
+            }
+        })
+        .collect()
+}
+
+/// The text of an ATX heading's content as rendered: code spans' backticks, links' and
+/// images' targets and brackets, and emphasis asterisks taken off. (Underscore emphasis and
+/// inline HTML are not undone: headings here do not use them.)
+fn heading_text(content: &str) -> String {
+    let b = content.as_bytes();
+    let mut out = String::new();
+    let mut i = 0;
+    while i < b.len() {
+        match b[i] {
+            b'\\' if i + 1 < b.len() => {
+                out.push(content[i + 1..].chars().next().unwrap());
+                i += 1 + content[i + 1..].chars().next().unwrap().len_utf8();
+            }
+            b'`' => {
+                let n = backticks(b, i);
+                match content[i + n..].find(&"`".repeat(n)) {
+                    Some(j) => {
+                        out.push_str(&content[i + n..i + n + j]);
+                        i += n + j + n;
+                    }
+                    None => {
+                        out.push_str(&content[i..i + n]);
+                        i += n;
+                    }
+                }
+            }
+            b'*' => i += 1,
+            b'!' if b.get(i + 1) == Some(&b'[') => i += 1,
+            b']' if b.get(i + 1) == Some(&b'(') => {
+                // The link's text is out already; its destination (and title) is not text.
+                let end = link_end(b, i + 2);
+                i = content[end..].find(')').map_or(b.len(), |k| end + k + 1);
+            }
+            b'[' | b']' => {
+                // Brackets of a link's text vanish; other brackets are text (and the slug
+                // drops them anyway).
+                i += 1;
+            }
+            _ => {
+                let c = content[i..].chars().next().unwrap();
+                out.push(c);
+                i += c.len_utf8();
+            }
+        }
+    }
+    out
+}
+
+/// The ids of the headings of the Markdown `text`, in order: ATX headings (`#` to `######`)
+/// outside fenced blocks, each the [`slug`] of its text or an explicit `{#id}` at its end; a
+/// repeated id gets `-1`, `-2`, ... as in mdBook and GitHub. Setext headings (text underlined
+/// with `===` or `---`) are not read: the files here do not use them.
+fn heading_ids(text: &str) -> Vec<String> {
+    let mut ids = Vec::new();
+    let mut used = HashSet::new();
+    let mut open: Option<(char, usize)> = None;
+    for line in text.lines() {
+        match (open, fence(line)) {
+            (None, Some(f)) if line.len() - line.trim_start().len() < 4 => {
+                open = Some(f);
+                continue;
+            }
+            (Some((c, n)), Some((c2, n2))) if c == c2 && n2 >= n && line.trim().chars().all(|x| x == c) => {
+                open = None;
+                continue;
+            }
+            (Some(_), _) => continue,
+            _ => {}
+        }
+        let indent = line.len() - line.trim_start_matches(' ').len();
+        let rest = &line[indent..];
+        let level = rest.chars().take_while(|&c| c == '#').count();
+        if indent > 3 || !(1..=6).contains(&level) {
+            continue;
+        }
+        let after = &rest[level..];
+        if !after.is_empty() && !after.starts_with([' ', '\t']) {
+            continue; // `#tag`, not a heading
+        }
+        // A closing run of `#`, where a space precedes it (or it is all there is).
+        let mut content = after.trim();
+        let stripped = content.trim_end_matches('#');
+        if stripped.is_empty() || stripped.ends_with([' ', '\t']) {
+            content = stripped.trim_end();
+        }
+        let base = match content.strip_suffix('}').and_then(|c| c.rsplit_once("{#")) {
+            Some((_, attrs)) => attrs.split_whitespace().next().unwrap_or_default().to_string(),
+            None => slug(&heading_text(content)),
+        };
+        let mut id = base.clone();
+        let mut k = 0;
+        while !used.insert(id.clone()) {
+            k += 1;
+            id = format!("{base}-{k}");
+        }
+        ids.push(id);
+    }
+    ids
+}
+
+/// The chapters `SUMMARY.md` lists (from the root), in its order.
+fn summary_chapters(summary: &str) -> Vec<(usize, String)> {
+    let top = top_level();
+    scan(summary, Path::new(BOOK_SRC), &top)
+        .links
+        .into_iter()
+        .filter(|l| !l.path.is_empty())
+        .map(|l| (l.line, l.path))
+        .collect()
+}
+
+/// Every Markdown file's text, by its path from the root, each read once.
+fn read_all() -> Vec<(PathBuf, String)> {
+    markdown_files()
+        .into_iter()
+        .filter_map(|file| match fs::read_to_string(root().join(&file)) {
+            Ok(text) => Some((file, text)),
+            Err(e) if e.kind() == ErrorKind::NotFound => None,
+            Err(e) => panic!("{}: {e}", file.display()),
+        })
+        .collect()
 }
 
 #[test]
@@ -376,4 +573,131 @@ fn every_repository_path_the_markdown_files_name_exists() {
     }
     assert!(missing.is_empty(), "{} named paths do not exist:\n  {}", missing.len(), missing.join("\n  "));
     assert!(checked >= MIN_NAMED, "only {checked} repository paths found in {top:?}-rooted Markdown text");
+}
+
+#[test]
+fn headings_get_the_ids_mdbook_and_github_give_them() {
+    assert_eq!(slug("Choosing the backend"), "choosing-the-backend");
+    assert_eq!(slug("glTF against Blender's Cycles"), "gltf-against-blenders-cycles");
+    assert_eq!(slug("strahl bench: lavapipe, the CPU backend"), "strahl-bench-lavapipe-the-cpu-backend");
+    assert_eq!(slug("  Big scenes: BVH, CPU traversal, memory "), "big-scenes-bvh-cpu-traversal-memory");
+    assert_eq!(slug("a — b"), "a--b");
+    assert_eq!(slug("snake_case and kebab-case"), "snake_case-and-kebab-case");
+    assert_eq!(slug("Über 10⁶ × 2"), "über-10⁶--2");
+    assert_eq!(
+        heading_text("`[[objects]]` (optional, at most 1,000,000)"),
+        "[[objects]] (optional, at most 1,000,000)"
+    );
+    assert_eq!(slug(&heading_text("`[[objects]]` (optional, at most 1,000,000)")), "objects-optional-at-most-1000000");
+    assert_eq!(heading_text("See [the *book*](docs/x.md \"t\") and ![a](i.png)"), "See the book and a");
+    assert_eq!(heading_text(r"a \# b"), "a # b");
+    let text = "# Title\n\
+                ## Files ##\n\
+                ```md\n\
+                # not a heading\n\
+                ```\n\
+                ## Files\n\
+                #hashtag\n    # indented code\n\
+                ### `strahl render`\n\
+                ## Files\n\
+                ## Custom {#my-id}\n\
+                ##\n\
+                ###### Six #\n";
+    assert_eq!(heading_ids(text), ["title", "files", "files-1", "strahl-render", "files-2", "my-id", "", "six"]);
+}
+
+#[test]
+fn the_scan_records_links_with_their_fragments() {
+    let top = ["src".to_string()];
+    let text = "[a](#here) [b](other.md#there) [c](../up.md) [d](img/x.png) [e](https://x.org/#y)\n";
+    let scan = scan(text, Path::new("docs/src"), &top);
+    let links: Vec<(&str, Option<&str>)> =
+        scan.links.iter().map(|l| (l.path.as_str(), l.fragment.as_deref())).collect();
+    assert_eq!(
+        links,
+        [("", Some("here")), ("docs/src/other.md", Some("there")), ("docs/up.md", None), ("docs/src/img/x.png", None)]
+    );
+}
+
+#[test]
+fn every_link_fragment_names_a_heading_of_its_file() {
+    let root = root();
+    let top = top_level();
+    let files = read_all();
+    let mut ids_of = std::collections::HashMap::new();
+    let mut checked = 0;
+    let mut broken = Vec::new();
+    for (file, text) in &files {
+        let scan = scan(text, file.parent().unwrap_or(Path::new("")), &top);
+        for link in scan.links {
+            let Some(fragment) = link.fragment.filter(|f| !f.is_empty()) else { continue };
+            let target = if link.path.is_empty() { file.to_string_lossy().into_owned() } else { link.path };
+            if !target.ends_with(".md") {
+                continue; // a source file's `#L12` and the like: not headings
+            }
+            let ids = ids_of.entry(target.clone()).or_insert_with(|| {
+                // A missing file is the path check's to report.
+                fs::read_to_string(root.join(&target)).ok().map(|t| heading_ids(&t))
+            });
+            let Some(ids) = ids else { continue };
+            checked += 1;
+            if !ids.contains(&fragment) {
+                broken.push(format!("{}:{}: {target}#{fragment}: no such heading", file.display(), link.line));
+            }
+        }
+    }
+    assert!(broken.is_empty(), "{} links name no heading:\n  {}", broken.len(), broken.join("\n  "));
+    if root.join(BOOK_SRC).is_dir() {
+        assert!(checked > 0, "no link with a #fragment found: the scan has stopped finding them");
+    }
+}
+
+#[test]
+fn the_book_links_only_within_itself_and_its_summary_lists_every_chapter() {
+    let root = root();
+    let book = root.join(BOOK_SRC);
+    if !book.is_dir() {
+        return;
+    }
+    let top = top_level();
+    let mut wrong = Vec::new();
+    for (file, text) in read_all().iter().filter(|(f, _)| f.starts_with(BOOK_SRC)) {
+        for link in scan(text, file.parent().unwrap(), &top).links {
+            if link.path.is_empty() {
+                continue;
+            }
+            if !Path::new(&link.path).starts_with(BOOK_SRC) {
+                wrong.push(format!(
+                    "{}:{}: {}: outside {BOOK_SRC}, which is all mdBook publishes (name the file in a code span)",
+                    file.display(),
+                    link.line,
+                    link.path
+                ));
+            } else if link.path.ends_with(".md") && !root.join(&link.path).is_file() {
+                wrong.push(format!("{}:{}: {}: no such chapter", file.display(), link.line, link.path));
+            }
+        }
+    }
+    let summary_path = format!("{BOOK_SRC}/SUMMARY.md");
+    let summary = fs::read_to_string(root.join(&summary_path)).expect("the book has a SUMMARY.md");
+    let chapters = summary_chapters(&summary);
+    assert!(!chapters.is_empty(), "{summary_path} lists no chapter");
+    let mut listed = HashSet::new();
+    for (line, chapter) in &chapters {
+        if !chapter.ends_with(".md") || !root.join(chapter).is_file() {
+            wrong.push(format!("{summary_path}:{line}: {chapter}: no such chapter"));
+        }
+        if !listed.insert(chapter.clone()) {
+            wrong.push(format!("{summary_path}:{line}: {chapter}: listed twice"));
+        }
+    }
+    let mut in_book = Vec::new();
+    walk(&book, &mut in_book);
+    for file in in_book {
+        let name = file.to_string_lossy().into_owned();
+        if name != summary_path && !listed.contains(&name) {
+            wrong.push(format!("{name}: not listed in {summary_path}, so mdBook leaves it out"));
+        }
+    }
+    assert!(wrong.is_empty(), "{} problems with the book:\n  {}", wrong.len(), wrong.join("\n  "));
 }
