@@ -380,12 +380,11 @@ impl GpuContext {
         slot.try_lock().ok()?.clone()
     }
 
-    /// The path tracer this device runs best for `scene`, as measured (`strahl bench` times both): on
+    /// The path tracer this device runs best for `scene` (`strahl bench` times both): on
     /// lavapipe before Mesa 25, which executes both sides of every branch for all eight lanes of
-    /// its SIMD programs, the wavefront tracer, whose kernels carry only the code of their stage
-    /// (faster there on the seed scene); everywhere else the megakernel (faster on Mesa 25.0.7,
-    /// which skips branches no lane takes; no other device measured yet). The runs and their
-    /// ratios are in the README ("Path tracing, two ways"). The environment variable
+    /// its SIMD programs, the wavefront tracer, whose kernels carry only the code of their stage;
+    /// everywhere else the megakernel (Mesa 25 skips branches no lane takes). The runs are in
+    /// the book's performance chapter ("Megakernel and wavefront"). The environment variable
     /// [`PATH_KERNELS_VAR`] (`megakernel` or `wavefront`) overrides the choice. A scene whose
     /// arrays take more bindings than the device has beside the wavefront tracer's runs the
     /// megakernel.

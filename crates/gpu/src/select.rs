@@ -70,22 +70,13 @@ pub enum Backend {
     Cpu,
 }
 
-/// The faster backend for `w` where the only Vulkan device is a software one. Measured with
-/// whole runs of `strahl render` and `strahl trace` (shader cache warm) on a 2-vCPU Debian 12
-/// VM, lavapipe against the CPU backend on the same two cores, the seed scene at 640 × 480
-/// (README, "Choosing the backend", with `strahl bench`'s per-frame figures beside them):
-/// - Whitted, 1 spp: cpu 1.6–1.7 s; lavapipe (Mesa 25.0.7) 2.3–3.1 s, of which opening the
-///   device and creating the pipeline 0.6–0.8 s (and 3–6 s more of compiling at the first
-///   dispatch with a cold shader cache); Mesa 22.3.6 6.7 s.
-/// - Path, 16 spp: cpu 15.4–16.8 s; lavapipe (Mesa 25) 16.7–17.9 s; Mesa 22.3 62.8 s.
-/// - Trace, 200,000 rays over the seed scene: nearest hit cpu 1.3–1.9 s, lavapipe 1.4–2.8 s;
-///   every hit cpu 2.0–2.3 s, lavapipe 1.8–4.5 s.
-///
-/// (The machine was shared while measuring: times are several times the unloaded ones, ratios
-/// within minutes compare.) The CPU backend is as fast (within the spread of the runs) or
-/// faster in every row and compiles
-/// nothing, so it is chosen for all three. Revise a row when the shaders get faster (and the
-/// expectation of `tests/backend_choice.rs`, which states it apart).
+/// The faster backend for `w` where the only Vulkan device is a software one, decided by whole
+/// runs of `strahl render` and `strahl trace` (what a user waits for: device, pipeline, render
+/// and file), lavapipe against the CPU backend on the same cores: the book's performance
+/// chapter ("Choosing the backend") has the runs. The CPU backend was as fast (within the
+/// spread of the runs) or faster for every workload, and compiles nothing, so it is chosen for
+/// all three. Revise a row when the shaders get faster (and the expectation of
+/// `tests/backend_choice.rs`, which states it apart).
 pub fn on_software_device(w: Workload) -> Backend {
     match w {
         Workload::Whitted => Backend::Cpu,

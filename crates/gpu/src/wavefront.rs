@@ -5,8 +5,8 @@
 //! kernel does the same kind of work. It computes what the megakernel (`megakernel.wgsl`) computes,
 //! the same sums in the same order: the two images agree to rounding (a test checks it).
 //!
-//! Which one is faster depends on the device: see the README's figures. `strahl bench` measures
-//! both, with the time of each kernel.
+//! Which one is faster depends on the device (the book's performance chapter has the runs);
+//! `strahl bench` measures both, with the time of each kernel.
 
 use super::stage_frame;
 use super::timing::{RenderStats, Timer};

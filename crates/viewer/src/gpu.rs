@@ -16,9 +16,8 @@ use strahl_core::layout::{self as g, FrameParams};
 use strahl_gpu::tiles::{Band, record_pass};
 use strahl_gpu::{GpuContext, GpuError, Program, SceneBuffers};
 
-/// Tile side of the viewer's dispatches, as for `strahl render`. (64 was tried: on lavapipe
-/// a 64 × 64 tile of the seed scene costs half as much as a 128 × 128 one, for a quarter of
-/// the pixels, so whole passes took twice as long for a UI only somewhat smoother.)
+/// Tile side of the viewer's dispatches, as for `strahl render`. Smaller tiles make the UI
+/// only somewhat smoother: a dispatch's fixed cost on lavapipe makes whole passes slower.
 pub const VIEW_TILE: u32 = strahl_gpu::tiles::TILE;
 /// The present shader (standalone WGSL, before the shared values are substituted).
 pub const PRESENT_WGSL: &str = include_str!("../../gpu/shaders/present.wgsl");

@@ -296,11 +296,11 @@ fn nearest_with<K: Kernels, const NEG: bool>(
 
 /// [`nearest`] for each of `rays` in (tmin, tmax), into `out` (as long as `rays`); the
 /// answers are those of [`nearest`]. With AVX2 and tmin ≥ 0, each group of eight coherent
-/// rays (a camera's neighbours) is walked as one packet ([`packet`]: 1.6× the rays per
-/// second on the bumpy torus's camera rays). The other rays advance several searches
-/// ([`IN_FLIGHT`]) side by side, so that the processor overlaps the memory latency of one
-/// with the work of the others: this pays where the tree does not fit in the caches (random
-/// rays: 20–30 % more rays per second on the bumpy torus).
+/// rays (a camera's neighbours) is walked as one packet ([`packet`]), which shares each node's
+/// loads among the eight. The other rays advance several searches ([`IN_FLIGHT`]) side by side,
+/// so that the processor overlaps the memory latency of one with the work of the others: this
+/// pays where the tree does not fit in the caches (random rays). Both gains are in the book's
+/// performance chapter ("Design choices measured").
 pub fn nearest_many(
     w: &WideBvh,
     prims: &Primitives<f32>,
@@ -379,8 +379,8 @@ fn nearest_many_with<K: Kernels, const NEG: bool>(
     }
 }
 
-/// Searches [`nearest_many`] advances side by side (2 to 6 measured alike; 4 best for random
-/// rays on a million triangles).
+/// Searches [`nearest_many`] advances side by side: enough to hide a cache miss behind the
+/// others' work, few enough that their stacks stay in the first-level cache.
 const IN_FLIGHT: usize = 4;
 
 /// The rays [`nearest_many`] has yet to start.

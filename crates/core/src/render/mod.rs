@@ -44,7 +44,7 @@ pub struct Prepared {
 /// (48 bytes for a triangle), the build's record and reference (36), the binary tree (up to
 /// 64; 36 typical), its 8-wide form (about 72: nodes and leaf blocks with vertex copies), and
 /// the GPU layout (the triangle in scene order and in leaf order, 48 bytes each, and the
-/// 64-byte two-child nodes: about 125). 306 measured on the bumpy torus, rounded up with room.
+/// 64-byte two-child nodes: about 125), rounded up with room.
 pub const BYTES_PER_PRIMITIVE: u64 = 352;
 
 /// A scene too large for this machine, found before anything is allocated for it.

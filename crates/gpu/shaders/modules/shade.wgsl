@@ -145,8 +145,7 @@ fn direct_light(o: vec3<f32>, d: vec3<f32>, t: f32, ng: vec3<f32>, ns: vec3<f32>
 // `top`, the ones below it in the array `below`. A private array indexed per lane costs a
 // driver that runs invocations as SIMD lanes (lavapipe) a scalar load or store per lane and
 // per word, so the ray that is pushed and popped next (the camera ray, a mirror's reflection,
-// a dielectric's refraction) never goes through it: 2 % fewer shader instructions for
-// Whitted on the seed scene.
+// a dielectric's refraction) never goes through it.
 struct RayStack {
     below: array<Pending, WHITTED_STACK>,
     stored: u32,
