@@ -41,7 +41,7 @@ fn file_count(dir: &Path) -> usize {
         .unwrap_or(0)
 }
 
-/// What `auto` must do here, stated apart from `select::on_software_device` (README,
+/// What `auto` must do here, stated apart from `select::on_software_device` (the book,
 /// "Choosing the backend"): the GPU on hardware; where the only device is a software one, the
 /// CPU for every workload, as measured. None without any Vulkan adapter.
 fn expected(w: Workload) -> Option<&'static str> {

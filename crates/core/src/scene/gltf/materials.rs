@@ -3,7 +3,7 @@
 use super::*;
 
 impl Reader<'_> {
-    /// Every material of the file, mapped onto strahl's kinds (see the README), with the
+    /// Every material of the file, mapped onto strahl's kinds (see the book's glTF chapter), with the
     /// textures they use; then the grey default for primitives without a material.
     pub(super) fn materials(&mut self) -> Res<()> {
         let mut textures: HashMap<TextureKey, u32> = HashMap::new();
