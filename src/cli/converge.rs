@@ -128,7 +128,7 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
             open(super::open_backend(Some(BackendChoice::Gpu), Workload::Path)?.0).context("opening the gpu backend")?
         }
         ConvergeBackend::Both => {
-            match select::select(BackendChoice::Gpu, Workload::Path)
+            match select::select(BackendChoice::Gpu.into(), Workload::Path)
                 .map_err(anyhow::Error::from)
                 .and_then(|s| open(s.selected))
             {
@@ -281,7 +281,7 @@ fn open_progressive(
 /// Renders `spp` samples per pixel on the backend `choice` takes for path tracing, in chunks,
 /// with progress.
 fn render_reference(prep: &Arc<Prepared>, choice: BackendChoice, width: u32, height: u32, spp: u32) -> Result<Image> {
-    let selection = select::select(choice, Workload::Path).context("opening the backend for the reference")?;
+    let selection = select::select(choice.into(), Workload::Path).context("opening the backend for the reference")?;
     if let Some(note) = &selection.note {
         eprintln!("reference {note}");
     }

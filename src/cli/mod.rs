@@ -13,7 +13,39 @@ mod view;
 
 use clap::{CommandFactory, Parser, Subcommand};
 use std::path::PathBuf;
-pub use strahl_gpu::select::Choice as BackendChoice;
+use strahl_gpu::select::Choice;
+
+/// `--backend`: [`Choice`] as a flag's values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BackendChoice {
+    /// A hardware GPU if there is one; else the faster of lavapipe and the CPU backend for the
+    /// work at hand; the CPU backend without any Vulkan adapter.
+    Auto,
+    /// WGSL compute shaders through wgpu (Vulkan); an error without an adapter.
+    Gpu,
+    /// The CPU reference (f32 mirror of the GPU, rayon over all cores).
+    Cpu,
+}
+
+impl From<BackendChoice> for Choice {
+    fn from(c: BackendChoice) -> Self {
+        match c {
+            BackendChoice::Auto => Choice::Auto,
+            BackendChoice::Gpu => Choice::Gpu,
+            BackendChoice::Cpu => Choice::Cpu,
+        }
+    }
+}
+
+impl From<Choice> for BackendChoice {
+    fn from(c: Choice) -> Self {
+        match c {
+            Choice::Auto => BackendChoice::Auto,
+            Choice::Gpu => BackendChoice::Gpu,
+            Choice::Cpu => BackendChoice::Cpu,
+        }
+    }
+}
 use strahl_gpu::select::{Selected, Workload};
 
 #[derive(Parser, Debug)]
@@ -131,8 +163,8 @@ pub fn backend_choice(flag: Option<BackendChoice>) -> anyhow::Result<(BackendCho
     if let Some(c) = flag {
         return Ok((c, false));
     }
-    match BackendChoice::from_env().map_err(usage_error)? {
-        Some(c) => Ok((c, true)),
+    match Choice::from_env().map_err(usage_error)? {
+        Some(c) => Ok((c.into(), true)),
         None => Ok((BackendChoice::Auto, false)),
     }
 }
@@ -142,7 +174,7 @@ pub fn backend_choice(flag: Option<BackendChoice>) -> anyhow::Result<(BackendCho
 /// one); with whether `auto` chose it (neither the flag nor the environment forced one).
 pub fn open_backend(flag: Option<BackendChoice>, workload: Workload) -> anyhow::Result<(Selected, bool)> {
     let (choice, from_env) = backend_choice(flag)?;
-    let selection = strahl_gpu::select::select(choice, workload)?;
+    let selection = strahl_gpu::select::select(choice.into(), workload)?;
     match (&selection.note, from_env) {
         (Some(note), _) => eprintln!("{note}"),
         (None, true) => eprintln!(

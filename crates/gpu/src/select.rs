@@ -10,7 +10,7 @@
 use crate::{GpuContext, GpuError, instance};
 
 /// What the user asked for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Choice {
     /// A hardware GPU if there is one; else the faster of lavapipe and the CPU backend for the
     /// work at hand; the CPU backend without any Vulkan adapter.
@@ -27,7 +27,12 @@ pub const ENV: &str = "STRAHL_BACKEND";
 impl Choice {
     /// `auto`, `gpu` or `cpu` (any case, surrounding spaces ignored).
     pub fn parse(s: &str) -> Option<Self> {
-        <Self as clap::ValueEnum>::from_str(s.trim(), true).ok()
+        match s.trim().to_ascii_lowercase().as_str() {
+            "auto" => Some(Self::Auto),
+            "gpu" => Some(Self::Gpu),
+            "cpu" => Some(Self::Cpu),
+            _ => None,
+        }
     }
 
     /// The default from [`ENV`]: `Ok(None)` where it is unset or empty, an error naming the
