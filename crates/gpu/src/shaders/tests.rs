@@ -1,0 +1,509 @@
+use super::*;
+use std::collections::HashMap;
+
+/// Every key of the flags before [`FeatureKey::ASSETS`] (all programs), and the five valid
+/// combinations of the asset flags over the flags whose code the asset code meets
+/// (spheres and triangles: emitter sampling and texture lookups; BVH; point lights: the
+/// path tracer's light loop; emissive and dielectric: emitters and shadow crossing), for
+/// the shading programs that read them: 2048 + 5 × 64 keys instead of 2^14 (the other
+/// flags only change traversal and BSDF code, which the asset code does not touch).
+fn keys_to_validate() -> Vec<u32> {
+    let base = FeatureKey::ASSETS.trailing_zeros();
+    let mut keys: Vec<u32> = (0..(1u32 << base)).collect();
+    let met = FeatureKey::SPHERES
+        | FeatureKey::TRIANGLES
+        | FeatureKey::BVH
+        | FeatureKey::POINT_LIGHTS
+        | FeatureKey::EMISSIVE
+        | FeatureKey::DIELECTRIC;
+    let skip = !met & ((1 << base) - 1);
+    for assets in [
+        FeatureKey::PBR | FeatureKey::ALPHA | FeatureKey::TEXTURES,
+        FeatureKey::ALPHA,
+        FeatureKey::PBR,
+        FeatureKey::PBR | FeatureKey::TEXTURES,
+        FeatureKey::TEXTURES,
+        FeatureKey::ENVIRONMENT,
+        FeatureKey::ENVIRONMENT | FeatureKey::ENV_MAP,
+        FeatureKey::TEXTURES | FeatureKey::ENVIRONMENT,
+        FeatureKey::ALL.0 & FeatureKey::ASSETS,
+    ] {
+        keys.extend((0..(1u32 << base)).filter(|k| k & skip == 0).map(|k| k | assets));
+    }
+    keys
+}
+
+#[test]
+fn every_feature_key_composes_and_validates() {
+    use rayon::prelude::*;
+    let failures: Vec<String> = keys_to_validate()
+        .into_par_iter()
+        .flat_map_iter(|bits| {
+            let key = FeatureKey(bits);
+            [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View]
+                .into_iter()
+                .filter(move |&p| key.for_program(p) == key)
+                .filter_map(move |p| match compose(p, key) {
+                    Ok(m) => validate(p, key, &m).err().map(|e| e.to_string()),
+                    Err(e) => Some(format!("{}: {e}", key.label())),
+                })
+        })
+        .collect();
+    assert!(failures.is_empty(), "{} variants fail, first: {}", failures.len(), failures[0]);
+}
+
+/// Splits of every array alone into 2, 3 and 4 parts, and of all three into 2 and 4, with
+/// the geometry of a mesh and with every feature, with and without 64-bit loads.
+fn split_keys() -> Vec<FeatureKey> {
+    use crate::split::Split;
+    let mut splits = vec![[2, 2, 2], [4, 4, 4]];
+    for i in 0..3 {
+        splits.extend((2..=4).map(|p| {
+            let mut s = [1; 3];
+            s[i] = p;
+            s
+        }));
+    }
+    let mesh = FeatureKey::TRIANGLES | FeatureKey::BVH | FeatureKey::POINT_LIGHTS;
+    let mut keys = Vec::new();
+    for parts in splits {
+        let bits = Split::with_parts(parts, 27).key_bits();
+        for base in [mesh, FeatureKey::ALL.0] {
+            keys.extend([FeatureKey(base | bits), FeatureKey(base | bits | FeatureKey::LOAD64)]);
+        }
+    }
+    keys
+}
+
+#[test]
+fn every_split_composes_and_validates() {
+    use rayon::prelude::*;
+    let failures: Vec<String> = split_keys()
+        .into_par_iter()
+        .flat_map_iter(|key| {
+            [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View].into_iter().filter_map(
+                move |p| match compose(p, key) {
+                    Ok(m) => validate(p, key, &m).err().map(|e| e.to_string()),
+                    Err(e) => Some(format!("{}: {e}", key.label())),
+                },
+            )
+        })
+        .collect();
+    assert!(failures.is_empty(), "{} variants fail, first: {}", failures.len(), failures[0]);
+}
+
+/// A split variant declares each part after the first at the binding the host binds it
+/// to (split::extra_binding), and reads parts only through the part-selecting functions;
+/// an unsplit variant contains none of them.
+#[test]
+fn parts_are_declared_where_the_host_binds_them_and_only_in_split_variants() {
+    use crate::split::{Split, SplitArray, extra_binding};
+    let names = |a: SplitArray| match a {
+        SplitArray::Triangles => "triangles",
+        SplitArray::Nodes => "nodes",
+        SplitArray::LeafTriangles => "leaf_triangles",
+    };
+    for load64 in [0, FeatureKey::LOAD64] {
+        let split = FeatureKey(FeatureKey::ALL.0 | load64 | Split::with_parts([4, 4, 4], 27).key_bits());
+        let m = compose(Program::Path, split).unwrap();
+        let bindings: HashMap<String, u32> = m
+            .global_variables
+            .iter()
+            .filter_map(|(_, g)| {
+                let name = g.name.as_deref()?.split("X_naga_oil_mod_X").next()?.to_string();
+                Some((name, g.binding.as_ref()?.binding))
+            })
+            .collect();
+        for array in SplitArray::ALL {
+            for p in 1..crate::split::MAX_PARTS {
+                let name = format!("{}_{p}", names(array));
+                assert_eq!(bindings.get(&name), Some(&extra_binding(array, p)), "{name}");
+            }
+        }
+        let text = to_wgsl(&m, &validate(Program::Path, split, &m).unwrap());
+        let unsplit = FeatureKey(FeatureKey::ALL.0 | load64);
+        let plain = compose(Program::Path, unsplit).unwrap();
+        let plain_text = to_wgsl(&plain, &validate(Program::Path, unsplit, &plain).unwrap());
+        let selectors: &[&str] = if load64 != 0 {
+            &["scene_triangle", "node_half", "leaf_word"]
+        } else {
+            &["scene_triangle", "node_at", "leaf_at"]
+        };
+        for f in selectors.iter().chain(&["triangles_1", "nodes_1", "leaf_triangles_1"]) {
+            assert!(text.contains(f), "{f} missing from the split variant");
+            assert!(!plain_text.contains(f), "{f} in the unsplit variant");
+        }
+    }
+}
+
+/// Scenes with what no shipped scene has, written to `dir`: an image texture on a mesh, an
+/// emission texture, an environment map, a constant environment, and emissive objects
+/// alone (lit in Whitted mode by their stand-in point lights).
+fn asset_scenes(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    image::RgbImage::from_fn(4, 4, |x, y| image::Rgb([(x * 60) as u8, (y * 60) as u8, 90]))
+        .save(dir.join("checker.png"))
+        .unwrap();
+    image::Rgb32FImage::from_fn(8, 4, |x, _| image::Rgb([0.2, 0.3, x as f32])).save(dir.join("sky.exr")).unwrap();
+    let obj = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+    std::fs::write(dir.join("quad.obj"), obj).unwrap();
+    let head = "[camera]\neye = [0.0, 1.0, -4.0]\nlook_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 50.0\n\
+                [image]\nwidth = 8\nheight = 6\n";
+    let sphere = "[[objects]]\ntype = \"sphere\"\ncenter = [0.0, 0.5, 0.0]\nradius = 0.5\nmaterial = \"m\"\n";
+    let quad =
+        |material: &str| format!("[[objects]]\ntype = \"mesh\"\nfile = \"quad.obj\"\nmaterial = \"{material}\"\n");
+    let light = "[[lights]]\ntype = \"point\"\nposition = [0.0, 3.0, 0.0]\nintensity = [5.0, 5.0, 5.0]\n";
+    // A glTF triangle whose material blends by alpha (TOML materials have no alpha).
+    let positions: Vec<u8> =
+        [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]].iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+    use base64::Engine;
+    let data = base64::engine::general_purpose::STANDARD.encode(&positions);
+    let veil = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+        "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "material": 0}}]}}],
+        "materials": [{{"pbrMetallicRoughness": {{"baseColorFactor": [1, 1, 1, 0.5]}}, "alphaMode": "BLEND"}}],
+        "buffers": [{{"uri": "data:application/octet-stream;base64,{data}", "byteLength": 36}}],
+        "bufferViews": [{{"buffer": 0, "byteLength": 36}}],
+        "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+            "min": [0, 0, 0], "max": [1, 1, 0]}}]}}"#
+    );
+    std::fs::write(dir.join("veil.gltf"), veil).unwrap();
+    let scenes = [
+        (
+            "textured.toml",
+            format!(
+                "{head}[[materials]]\nname = \"m\"\ntype = \"diffuse\"\ntexture = \"checker.png\"\n\
+                 [[materials]]\nname = \"glow\"\ntype = \"emissive\"\nradiance = [2.0, 2.0, 2.0]\n\
+                 radiance_texture = \"checker.png\"\n{}{light}[environment]\nfile = \"sky.exr\"\n",
+                quad("m") + &quad("glow")
+            ),
+        ),
+        (
+            "constant_sky.toml",
+            format!(
+                "{head}[[materials]]\nname = \"m\"\ntype = \"mirror\"\n{sphere}{light}[environment]\nradiance = [0.5, 0.6, 0.7]\n"
+            ),
+        ),
+        (
+            "pbr.toml",
+            format!(
+                "{head}[[materials]]\nname = \"m\"\ntype = \"pbr\"\nmetallic = 0.5\nroughness = 0.4\n\
+                 radiance = [0.5, 0.5, 0.5]\n{sphere}{light}"
+            ),
+        ),
+        ("alpha.toml", format!("{head}[[objects]]\ntype = \"gltf\"\nfile = \"veil.gltf\"\n{light}")),
+        (
+            "emitters_only.toml",
+            format!(
+                "{head}[[materials]]\nname = \"m\"\ntype = \"emissive\"\nradiance = [4.0, 4.0, 4.0]\n{sphere}{}",
+                quad("m")
+            ),
+        ),
+    ];
+    scenes
+        .into_iter()
+        .map(|(name, text)| {
+            let path = dir.join(name);
+            std::fs::write(&path, text).unwrap();
+            path
+        })
+        .collect()
+}
+
+/// The key read from a scene equals the key of its flattened buffers, for every shipped
+/// scene, for scenes with textures and environments, and for the viewer's way of keying a
+/// scene while objects are hidden.
+#[test]
+fn the_key_of_a_scene_is_the_key_of_its_buffers() {
+    let dir = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/scenes"));
+    let assets = tempfile::tempdir().unwrap();
+    let mut paths: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+    paths.extend(asset_scenes(assets.path()));
+    let mut seen = 0;
+    let mut flags = 0;
+    for path in paths {
+        if path.extension().is_none_or(|x| x != "toml") {
+            continue;
+        }
+        let scene = strahl_core::scene::Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let prep = strahl_core::render::Prepared::new(scene.clone());
+        assert_eq!(FeatureKey::of_scene(&scene, &prep.prims), FeatureKey::for_scene(&prep.gpu), "{}", path.display());
+        flags |= FeatureKey::for_scene(&prep.gpu).0;
+        seen += 1;
+    }
+    assert!(seen >= 11, "only {seen} scenes");
+    // Every scene flag was met by some scene.
+    let scene_flags = FeatureKey::ALL.0;
+    assert_eq!(flags & scene_flags, scene_flags, "flags no scene had: {}", FeatureKey(scene_flags & !flags).label());
+}
+
+#[test]
+fn a_sphere_only_shader_contains_no_other_primitive_code() {
+    let key = FeatureKey(FeatureKey::SPHERES | FeatureKey::POINT_LIGHTS);
+    let m = compose(Program::Whitted, key).unwrap();
+    let text = to_wgsl(&m, &validate(Program::Whitted, key, &m).unwrap());
+    assert!(text.contains("sphere_roots"), "the sphere code is there");
+    // Case-sensitive identifiers of other primitives' code and types (naga_oil's name
+    // decorations are upper-case base32 and cannot spell them).
+    let absent_items = [
+        "Cylinder",
+        "cylinder_roots",
+        "cap_root",
+        "Triangle",
+        "triangle_intersect",
+        "Shear",
+        "Plane",
+        "plane_roots",
+        "refract",
+        "fresnel",
+        "Node",
+        "slab",
+        "nodes",
+        "texture_sample",
+        "texels",
+        "triangle_attrs",
+        "env_background",
+        "env_distribution",
+        "Environment",
+    ];
+    for absent in absent_items {
+        assert!(!text.contains(absent), "{absent} found in the sphere-only shader");
+    }
+    let all = compose(Program::Whitted, FeatureKey::ALL).unwrap();
+    let all_text = to_wgsl(&all, &validate(Program::Whitted, FeatureKey::ALL, &all).unwrap());
+    for present in [
+        "cylinder_roots",
+        "triangle_intersect",
+        "plane_roots",
+        "fresnel_dielectric",
+        "slab",
+        "texture_sample",
+        "env_background",
+    ] {
+        assert!(all_text.contains(present), "{present} missing from the all-features shader");
+    }
+    assert!(text.len() * 2 < all_text.len(), "{} vs {} bytes", text.len(), all_text.len());
+}
+
+/// lavapipe 22 leaks a compiled shader per pipeline bind when a uniform steers control
+/// flow (shaders/modules/bindings.wgsl): no program binds a uniform buffer.
+#[test]
+fn no_program_binds_a_uniform_buffer() {
+    for p in [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View] {
+        let key = FeatureKey::ALL.for_program(p);
+        let m = compose(p, key).unwrap();
+        let uniforms: Vec<_> = m
+            .global_variables
+            .iter()
+            .filter(|(_, g)| g.space == naga::AddressSpace::Uniform)
+            .map(|(_, g)| g.name.clone())
+            .collect();
+        assert!(uniforms.is_empty(), "{p:?} binds uniforms {uniforms:?}");
+    }
+}
+
+/// The constants of the composed shaders hold the values the host shares with them
+/// (super::shared), as naga evaluated them.
+#[test]
+fn shared_constants_reach_the_composed_shaders_exactly() {
+    use crate::shared::{Shared, constants};
+    let shared: HashMap<&str, Shared> = constants().into_iter().collect();
+    let mut seen = std::collections::HashSet::new();
+    for p in [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View] {
+        for key in [FeatureKey::ALL, FeatureKey(FeatureKey::ALL.0 | FeatureKey::LOAD64)] {
+            let m = compose(p, key).unwrap();
+            for (_, c) in m.constants.iter() {
+                let Some(name) = c.name.as_deref().and_then(|n| n.split("X_naga_oil_mod_X").next()) else {
+                    continue;
+                };
+                let Some(&want) = shared.get(name) else { continue };
+                let literal = |e: &naga::Expression| match *e {
+                    naga::Expression::Literal(naga::Literal::U32(v)) => Shared::U32(v),
+                    naga::Expression::Literal(naga::Literal::F32(v)) => Shared::F32(v),
+                    ref e => panic!("{name}: not a literal: {e:?}"),
+                };
+                let got = match (&m.global_expressions[c.init], want) {
+                    (naga::Expression::Compose { components, .. }, Shared::F32s(values)) => {
+                        let found: Vec<Shared> =
+                            components.iter().map(|&h| literal(&m.global_expressions[h])).collect();
+                        let wanted: Vec<Shared> = values.iter().map(|&v| Shared::F32(v)).collect();
+                        assert_eq!(found, wanted, "the table {name} in the {p:?} shader");
+                        want
+                    }
+                    (e, _) => literal(e),
+                };
+                assert_eq!(got, want, "{name} in the {p:?} shader");
+                seen.insert(name.to_string());
+            }
+        }
+    }
+    // Workgroup sizes are attributes and the stack depth an array length, not constants.
+    let m = compose(Program::Path, FeatureKey::ALL).unwrap();
+    let stack_len = m.types.iter().find_map(|(_, ty)| match &ty.inner {
+        naga::TypeInner::Struct { members, .. } if ty.name.as_deref()?.starts_with("Stack") => {
+            match m.types[members[0].ty].inner {
+                naga::TypeInner::Array { size: naga::ArraySize::Constant(n), .. } => Some(n.get()),
+                _ => None,
+            }
+        }
+        _ => None,
+    });
+    assert_eq!(stack_len.map(Shared::U32), shared.get("GPU_STACK").copied(), "the traversal stack's length");
+    // The table's length is its array's (checked with its values above); its row count
+    // folds into the constant expressions that use it.
+    let folded =
+        |n: &str| n.ends_with("WORKGROUP") || ["GPU_STACK", "GGX_ALBEDO_LEN", "GGX_ROUGHNESS_STEPS"].contains(&n);
+    let missing: Vec<_> = shared.keys().filter(|n| !seen.contains(**n) && !folded(n)).collect();
+    assert!(missing.is_empty(), "not found as constants: {missing:?}");
+}
+
+/// Every struct the host writes into a GPU buffer has, in the composed WGSL module, the
+/// size and member offsets of its Rust twin (as naga's layouter computes them).
+#[test]
+fn wgsl_struct_layouts_equal_the_rust_structs() {
+    use std::mem::{offset_of, size_of};
+    use strahl_core::accel::gpu_bvh::{GpuLeafTriangle, GpuNode};
+    use strahl_core::layout::*;
+    macro_rules! layout {
+        ($wgsl:literal, $t:ty, [$($f:ident),*]) => {
+            ($wgsl, size_of::<$t>(), vec![$((stringify!($f), offset_of!($t, $f))),*])
+        };
+    }
+    let expected = [
+        layout!(
+            "Frame",
+            FrameParams,
+            [
+                eye,
+                width,
+                forward,
+                height,
+                right,
+                spp,
+                up,
+                max_depth,
+                background,
+                _pad,
+                ambient,
+                num_lights,
+                tile_origin,
+                tile_size,
+                sample_base,
+                out_pitch,
+                out_first_row,
+                flags,
+                num_emitters,
+                emitter_norm,
+                rr_depth,
+                seed
+            ]
+        ),
+        layout!("Sphere", GpuSphere, [center, radius, object, face, material, _pad]),
+        layout!("Cylinder", GpuCylinder, [pa, radius, pb, caps, object, face, material, _pad]),
+        layout!("Plane", GpuPlane, [point, object, normal, material]),
+        layout!("Triangle", GpuTriangle, [va, object, vb, face, vc, material]),
+        layout!("Node", GpuNode, [lo_a, link_a, hi_a, link_b, lo_b, _pad_a, hi_b, _pad_b]),
+        layout!("LeafTriangle", GpuLeafTriangle, [va, index, vb, material, vc, _pad]),
+        layout!(
+            "Material",
+            GpuMaterial,
+            [
+                color,
+                kind,
+                radiance,
+                ior,
+                roughness,
+                flags,
+                color_texture,
+                radiance_texture,
+                metallic,
+                metal_rough_texture,
+                normal_texture,
+                normal_scale,
+                alpha,
+                alpha_cutoff,
+                _pad
+            ]
+        ),
+        layout!("TextureInfo", GpuTexture, [width, height, offset, flags, linear, offset_uv, _pad]),
+        layout!("TriangleAttrs", GpuTriangleAttrs, [uv, second_uv, normal, color, flags, _pad]),
+        layout!(
+            "Environment",
+            GpuEnvironment,
+            [radiance, flags, rot_cos, rot_sin, texture, select_prob, width, height, _pad, sh]
+        ),
+        layout!("Light", GpuLight, [vector, kind, intensity, flags]),
+        layout!("Emitter", GpuEmitter, [source, kind, cdf, pdf]),
+        layout!("QueryRay", GpuQueryRay, [origin, tmin, dir, tmax]),
+        layout!("QueryHit", GpuQueryHit, [normal, t, object, face, prim_ref, flags]),
+    ];
+    // Every struct is used by one of these programs in its all-features variant.
+    let modules = [
+        compose(Program::Whitted, FeatureKey::ALL).unwrap(),
+        compose(Program::Path, FeatureKey::ALL).unwrap(),
+        compose(Program::Trace, FeatureKey::ALL).unwrap(),
+    ];
+    for (name, size, fields) in expected {
+        let found = modules.iter().find_map(|m| {
+            let mut layouter = naga::proc::Layouter::default();
+            layouter.update(m.to_ctx()).unwrap();
+            m.types.iter().find_map(|(h, ty)| {
+                let undecorated = ty.name.as_deref()?.split("X_naga_oil_mod_X").next()?;
+                match &ty.inner {
+                    naga::TypeInner::Struct { members, .. } if undecorated == name => {
+                        Some((layouter[h].size, members.clone()))
+                    }
+                    _ => None,
+                }
+            })
+        });
+        let (wgsl_size, members) = found.unwrap_or_else(|| panic!("struct {name} not found in the composed shaders"));
+        assert_eq!(wgsl_size as usize, size, "size of {name}");
+        // Padding is `_pad` in Rust (unused) and `pad` in WGSL.
+        let wgsl_name = |f: &str| f.trim_start_matches('_').to_string();
+        // Every member on each side is in the list, so none is checked only through the size.
+        let listed: Vec<String> = fields.iter().map(|(f, _)| wgsl_name(f)).collect();
+        let in_wgsl: Vec<String> = members.iter().map(|m| m.name.clone().unwrap_or_default()).collect();
+        assert_eq!(in_wgsl, listed, "the members of WGSL {name}, in order");
+        let rust_name = rust_struct_of(name);
+        let in_rust: Vec<String> = rust_fields(rust_name).iter().map(|f| wgsl_name(f)).collect();
+        assert_eq!(in_rust, listed, "the fields of {rust_name}, in order");
+        for ((field, offset), m) in fields.iter().zip(&members) {
+            assert_eq!(m.offset as usize, *offset, "offset of {name}.{field}");
+        }
+    }
+}
+
+/// The Rust struct whose layout WGSL struct `name` shares.
+fn rust_struct_of(name: &str) -> &'static str {
+    match name {
+        "Frame" => "FrameParams",
+        "Sphere" => "GpuSphere",
+        "Cylinder" => "GpuCylinder",
+        "Plane" => "GpuPlane",
+        "Triangle" => "GpuTriangle",
+        "Node" => "GpuNode",
+        "LeafTriangle" => "GpuLeafTriangle",
+        "Material" => "GpuMaterial",
+        "Light" => "GpuLight",
+        "Emitter" => "GpuEmitter",
+        "QueryRay" => "GpuQueryRay",
+        "QueryHit" => "GpuQueryHit",
+        "TextureInfo" => "GpuTexture",
+        "TriangleAttrs" => "GpuTriangleAttrs",
+        "Environment" => "GpuEnvironment",
+        _ => panic!("no Rust twin named for WGSL struct {name}"),
+    }
+}
+
+/// The field names of `pub struct NAME` as written in the source of the buffer layouts,
+/// so that a field added to the Rust struct and not to the test's list is caught.
+fn rust_fields(name: &str) -> Vec<String> {
+    let sources = [include_str!("../../../core/src/layout.rs"), include_str!("../../../core/src/accel/gpu_bvh.rs")];
+    let start = format!("pub struct {name} {{");
+    let text = sources.iter().find_map(|s| s.split_once(&start).map(|(_, rest)| rest));
+    let text = text.unwrap_or_else(|| panic!("pub struct {name} not found"));
+    let body = &text[..text.find("\n}").expect("the struct's closing brace")];
+    body.lines()
+        .filter_map(|l| l.trim().strip_prefix("pub ")?.split_once(':').map(|(f, _)| f.trim().to_string()))
+        .collect()
+}
