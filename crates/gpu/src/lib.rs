@@ -119,13 +119,17 @@ type PipelineKey = (Program, FeatureKey, &'static str);
 /// A cache entry: empty until its pipeline is compiled, locked while it compiles, so that a
 /// second thread asking for the same variant waits for it instead of compiling it again.
 type PipelineSlot = Arc<Mutex<Option<Arc<CachedPipeline>>>>;
+/// A variant's shader module, shared by the pipelines of its entry points (so composed and
+/// validated once), filled and locked like a [`PipelineSlot`].
+type ShaderSlot = Arc<Mutex<Option<wgpu::ShaderModule>>>;
 
 /// A compiled pipeline and what compiling it cost.
 pub struct CachedPipeline {
     pub pipeline: wgpu::ComputePipeline,
     /// The variant compiled: the scene's key with the device's flags ([`FeatureKey::DEVICE`]).
     pub key: FeatureKey,
-    /// Composition (naga_oil) plus pipeline creation (driver compile).
+    /// Composition (naga_oil) and shader module creation, where this was the variant's first
+    /// entry point, plus pipeline creation (driver compile).
     pub compile_time: Duration,
 }
 
@@ -144,6 +148,7 @@ pub struct GpuContext {
     trace_layout: wgpu::BindGroupLayout,
     wavefront_layout: wgpu::BindGroupLayout,
     pipelines: Mutex<HashMap<PipelineKey, PipelineSlot>>,
+    shader_modules: Mutex<HashMap<(Program, FeatureKey), ShaderSlot>>,
     /// Pipelines compiled so far.
     compiled: AtomicU32,
     faults: Arc<Faults>,
@@ -238,6 +243,7 @@ impl GpuContext {
             trace_layout,
             wavefront_layout,
             pipelines: Mutex::new(HashMap::new()),
+            shader_modules: Mutex::new(HashMap::new()),
             compiled: AtomicU32::new(0),
             faults,
         })
@@ -315,18 +321,33 @@ impl GpuContext {
         Ok(cached)
     }
 
-    /// Composes and compiles the pipeline of `entry` for the variant `key`. wgpu validates the
-    /// composed module (the one validation on this path; the tests validate every variant).
-    fn compile(&self, program: Program, key: FeatureKey, entry: &'static str) -> Result<CachedPipeline, GpuError> {
-        let start = Instant::now();
+    /// The shader module of the variant `key` of `program`, composed on first use. wgpu
+    /// validates the composed module when it makes the shader module (the one validation on
+    /// this path; the tests validate every variant), so once per variant and device.
+    fn shader_module(&self, program: Program, key: FeatureKey) -> Result<wgpu::ShaderModule, GpuError> {
+        let slot =
+            self.shader_modules.lock().expect("shader module cache lock").entry((program, key)).or_default().clone();
+        let mut slot = slot.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(m) = &*slot {
+            return Ok(m.clone());
+        }
         let module = shaders::compose(program, key)?;
-        let what = format!("the {program:?} shader {entry} for {}", key.label());
-        let shader = self.scoped(&what, || {
+        let label = format!("{program:?}");
+        let shader = self.scoped(&format!("the {program:?} shader for {}", key.label()), || {
             self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(entry),
+                label: Some(&label),
                 source: wgpu::ShaderSource::Naga(std::borrow::Cow::Owned(module)),
             })
         })?;
+        *slot = Some(shader.clone());
+        Ok(shader)
+    }
+
+    /// Compiles the pipeline of `entry` for the variant `key`.
+    fn compile(&self, program: Program, key: FeatureKey, entry: &'static str) -> Result<CachedPipeline, GpuError> {
+        let start = Instant::now();
+        let shader = self.shader_module(program, key)?;
+        let what = format!("the {program:?} shader {entry} for {}", key.label());
         let io_layout = match program {
             Program::Whitted | Program::Path | Program::View => &self.render_layout,
             Program::Trace => &self.trace_layout,

@@ -1,5 +1,8 @@
 //! WGSL sources, composed per scene with naga_oil: a scene's [`FeatureKey`] picks the shader
 //! defs, so a variant contains only the primitive, material and light code the scene uses.
+//!
+//! One composer serves the process ([`compose()`]): the modules are added once, and naga_oil
+//! keeps each module's variants by the defs it reads.
 
 mod compose;
 mod feature_key;
@@ -65,7 +68,7 @@ impl Program {
 /// run on devices with `SHADER_INT64`).
 const CAPABILITIES: naga::valid::Capabilities = naga::valid::Capabilities::SHADER_INT64;
 
-#[derive(Debug, thiserror::Error)]
+#[derive(Clone, Debug, thiserror::Error)]
 pub enum ShaderError {
     #[error("composing {file}: {message}")]
     Compose { file: String, message: String },

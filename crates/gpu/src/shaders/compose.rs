@@ -1,11 +1,52 @@
-//! Composition of a program for a key with naga_oil.
+//! The process's one naga_oil composer.
+//!
+//! The shared modules are added to it once, without shader defs; each composition passes the
+//! defs of its key, and naga_oil builds a module's variant for the defs that module (and what
+//! it imports) tests or substitutes, and keeps it: keys that differ only in defs a module does
+//! not read share its variant. The composer is built at first use, from the texts built into
+//! the binary or from `STRAHL_SHADER_DIR` ([`source_text`]).
 
 use naga_oil::compose::{
     ComposableModuleDescriptor, Composer, ComposerError, NagaModuleDescriptor, ShaderDefValue, ShaderLanguage,
     ShaderType,
 };
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
 
 use super::{CAPABILITIES, FeatureKey, MODULES, Program, ShaderError};
+
+/// The composer with every shared module, and the programs' texts read so far.
+struct Shaders {
+    composer: Composer,
+    programs: HashMap<Program, String>,
+}
+
+/// The process's composer, or why it could not be built (kept: the texts are read once).
+static SHADERS: OnceLock<Result<Mutex<Shaders>, ShaderError>> = OnceLock::new();
+
+impl Shaders {
+    fn new() -> Result<Self, ShaderError> {
+        let mut composer = Composer::default().with_capabilities(CAPABILITIES);
+        // A composed module is validated once, where it is used: by wgpu when its shader module
+        // is created (once per device and variant, GpuContext), and by `validate` in the tests,
+        // which cover every variant.
+        composer.validate = false;
+        for (file, src) in MODULES {
+            let src = source_text(file, src)?;
+            let added = composer
+                .add_composable_module(ComposableModuleDescriptor {
+                    source: &src,
+                    file_path: file,
+                    language: ShaderLanguage::Wgsl,
+                    ..Default::default()
+                })
+                .map(|_| ());
+            added
+                .map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e, &composer) })?;
+        }
+        Ok(Shaders { composer, programs: HashMap::new() })
+    }
+}
 
 /// naga_oil's message for `e`, located in the source it names (file, line, column and the
 /// line itself), its decorated names undone.
@@ -37,31 +78,30 @@ pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, Shader
     if program == Program::View {
         defs.insert("COUNT_VISITS".into(), ShaderDefValue::Bool(true));
     }
-    let mut composer = Composer::default().with_capabilities(CAPABILITIES);
-    // The composed module is validated once, where it is used: by wgpu when the pipeline is
-    // created, and by `validate` in the tests, which cover every variant.
-    composer.validate = false;
-    for (file, src) in MODULES {
-        let src = source_text(file, src)?;
-        let added = composer
-            .add_composable_module(ComposableModuleDescriptor {
-                source: &src,
-                file_path: file,
-                language: ShaderLanguage::Wgsl,
-                shader_defs: defs.clone(),
-                ..Default::default()
-            })
-            .map(|_| ());
-        added.map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e, &composer) })?;
-    }
-    let (file, src) = program.source();
-    let src = source_text(file, src)?;
+    let lock = SHADERS.get_or_init(|| Shaders::new().map(Mutex::new)).as_ref().map_err(Clone::clone)?;
+    let mut shaders = match lock.lock() {
+        Ok(shaders) => shaders,
+        Err(poisoned) => {
+            // naga_oil takes a module out of the composer while it builds a variant of it, so a
+            // panic there leaves the composer without it: start again from the texts.
+            let mut shaders = poisoned.into_inner();
+            *shaders = Shaders::new()?;
+            lock.clear_poison();
+            shaders
+        }
+    };
+    let Shaders { composer, programs } = &mut *shaders;
+    let (file, built_in) = program.source();
+    let src = match programs.entry(program) {
+        std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+        std::collections::hash_map::Entry::Vacant(e) => e.insert(source_text(file, built_in)?),
+    };
     let module = composer.make_naga_module(NagaModuleDescriptor {
-        source: &src,
+        source: src,
         file_path: file,
         shader_type: ShaderType::Wgsl,
         shader_defs: defs,
         ..Default::default()
     });
-    module.map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e, &composer) })
+    module.map_err(|e| ShaderError::Compose { file: file.to_string(), message: compose_error(&e, composer) })
 }
