@@ -20,7 +20,7 @@ fn root() -> PathBuf {
 fn concurrent_requests_for_one_variant_compile_it_once() {
     let Some(ctx) = common::gpu() else { return };
     let ctx = Arc::new(ctx);
-    let key = FeatureKey(FeatureKey::SPHERES | FeatureKey::PLANES);
+    let key = FeatureKey::SPHERES | FeatureKey::PLANES;
     let threads = 4;
     let barrier = Arc::new(Barrier::new(threads));
     let handles: Vec<_> = (0..threads)

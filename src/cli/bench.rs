@@ -93,7 +93,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             let prep = Prepared::try_new(Scene::load(path)?)?;
             let ctx = GpuContext::new()?;
             let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
-            println!("{}", first_dispatch(&ctx, &buffers, &prep, FeatureKey(bits))?.as_secs_f64());
+            println!("{}", first_dispatch(&ctx, &buffers, &prep, FeatureKey::from_bits_retain(bits))?.as_secs_f64());
             Ok(())
         }
         None => bench(a),
@@ -133,7 +133,7 @@ fn first_dispatch(ctx: &GpuContext, buffers: &SceneBuffers, prep: &Prepared, key
 fn compile_in_child(scene: &Path, key: FeatureKey) -> Result<Duration> {
     let cache = tempfile::tempdir().context("creating a shader cache folder")?;
     let out = std::process::Command::new(std::env::current_exe()?)
-        .args(["bench", "--compile-only", &key.0.to_string()])
+        .args(["bench", "--compile-only", &key.bits().to_string()])
         .arg(scene)
         .env("MESA_SHADER_CACHE_DIR", cache.path())
         .output()

@@ -141,7 +141,7 @@ pub struct GpuContext {
     /// Whether per-dispatch timestamp queries are available.
     pub timestamps: bool,
     /// [`FeatureKey::DEVICE`] flags this device supports, added to every pipeline's key.
-    pub device_flags: u32,
+    pub device_flags: FeatureKey,
     /// The layouts of group 0, by the scene's split (one for all scenes that split nothing).
     scene_layouts: Mutex<HashMap<Split, wgpu::BindGroupLayout>>,
     render_layout: wgpu::BindGroupLayout,
@@ -216,8 +216,11 @@ impl GpuContext {
             }
         });
         let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let device_flags =
-            if device.features().contains(wgpu::Features::SHADER_INT64) { FeatureKey::LOAD64 } else { 0 };
+        let device_flags = if device.features().contains(wgpu::Features::SHADER_INT64) {
+            FeatureKey::LOAD64
+        } else {
+            FeatureKey::empty()
+        };
         let render_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("render output"),
             entries: &[storage_entry(0, false)],
@@ -436,7 +439,7 @@ impl GpuContext {
 
     /// The variant of `program` this device compiles for a scene needing `key`.
     pub fn variant(&self, program: Program, key: FeatureKey) -> FeatureKey {
-        FeatureKey(key.for_program(program).0 & !FeatureKey::DEVICE | self.device_flags)
+        (key.for_program(program) - FeatureKey::DEVICE) | self.device_flags
     }
 
     /// The output bind group (group 1) of the render and view programs over `buffer`, an
@@ -613,7 +616,7 @@ impl SceneBuffers {
             entries: &entries,
         });
         Self {
-            key: FeatureKey(FeatureKey::for_scene(g).0 | split.key_bits()),
+            key: FeatureKey::for_scene(g) | split.key(),
             frame,
             bind_group,
             bytes: buffers[1..].iter().map(|(_, b)| b.size()).sum(),
@@ -635,10 +638,9 @@ impl SceneBuffers {
     /// feature the scene uses, read the scene's arrays split as they are, and walk a BVH only
     /// if the scene has one.
     pub fn runs_with(&self, key: FeatureKey) -> bool {
-        let features = |k: FeatureKey| k.0 & !FeatureKey::SPLIT;
-        (features(key) & features(self.key)) == features(self.key)
+        key.flags().contains(self.key.flags())
             && Split::of_key(key) == self.split()
-            && (!key.has(FeatureKey::BVH) || self.has_bvh)
+            && (!key.contains(FeatureKey::BVH) || self.has_bvh)
     }
 }
 

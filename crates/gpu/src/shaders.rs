@@ -53,6 +53,8 @@ pub enum Program {
 }
 
 impl Program {
+    pub const ALL: [Program; 5] = [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View];
+
     pub fn source(self) -> (&'static str, &'static str) {
         match self {
             Program::Whitted => ("shaders/whitted.wgsl", include_str!("../shaders/whitted.wgsl")),

@@ -189,23 +189,24 @@ impl Split {
         bytes.chunks(part_bytes).collect()
     }
 
-    /// The split as bits of a [`FeatureKey`] (within [`MASK`]).
-    pub fn key_bits(self) -> u32 {
+    /// The split as a [`FeatureKey`] without flags (its bits within [`MASK`]).
+    pub fn key(self) -> FeatureKey {
         if !self.is_split() {
-            return 0;
+            return FeatureKey::empty();
         }
         let parts =
             SplitArray::ALL.iter().map(|a| (self.parts(*a) - 1) << (SHIFT + a.index() as u32 * PART_BITS)).sum::<u32>();
-        parts | self.part_log2 << LOG2_SHIFT
+        FeatureKey::from_bits_retain(parts | self.part_log2 << LOG2_SHIFT)
     }
 
     /// The split a key's bits hold.
     pub fn of_key(key: FeatureKey) -> Split {
-        let part_log2 = (key.0 >> LOG2_SHIFT) & ((1 << LOG2_BITS) - 1);
+        let bits = key.bits();
+        let part_log2 = (bits >> LOG2_SHIFT) & ((1 << LOG2_BITS) - 1);
         if part_log2 == 0 {
             return Split::NONE;
         }
-        let field = |a: SplitArray| ((key.0 >> (SHIFT + a.index() as u32 * PART_BITS)) & (MAX_PARTS - 1)) + 1;
+        let field = |a: SplitArray| ((bits >> (SHIFT + a.index() as u32 * PART_BITS)) & (MAX_PARTS - 1)) + 1;
         Split { parts: SplitArray::ALL.map(field), part_log2 }
     }
 
@@ -260,8 +261,8 @@ mod tests {
     fn arrays_that_fit_are_not_split() {
         let s = Split::plan(&lavapipe(32), torus_bytes(2_500_000)).unwrap();
         assert_eq!(s, Split::NONE);
-        assert_eq!((s.key_bits(), s.extra_bindings(), s.label()), (0, 0, String::new()));
-        assert_eq!(Split::of_key(FeatureKey(FeatureKey::ALL.0)), Split::NONE);
+        assert_eq!((s.key(), s.extra_bindings(), s.label()), (FeatureKey::empty(), 0, String::new()));
+        assert_eq!(Split::of_key(FeatureKey::ALL), Split::NONE);
     }
 
     #[test]
@@ -272,9 +273,9 @@ mod tests {
         assert_eq!(s.per_part(SplitArray::Nodes), 1 << 21);
         assert_eq!(s.extra_bindings(), 3);
         // The key holds the split above the flags, and gives it back.
-        let key = FeatureKey(FeatureKey::ALL.0 | s.key_bits());
-        assert_eq!(s.key_bits() & !MASK, 0);
-        assert_eq!(key.0 & !MASK, FeatureKey::ALL.0);
+        let key = FeatureKey::ALL | s.key();
+        assert_eq!(s.key().bits() & !MASK, 0);
+        assert_eq!(key.flags(), FeatureKey::ALL);
         assert_eq!(Split::of_key(key), s);
         assert_eq!(s.label(), "TRIANGLE_PARTS=2+NODE_PARTS=2+LEAF_TRIANGLE_PARTS=2 of 134217728 bytes");
     }
@@ -333,8 +334,8 @@ mod tests {
                 for l in 1..=MAX_PARTS {
                     for log2 in [5, 27, 31] {
                         let s = Split::with_parts([t, n, l], log2);
-                        assert_eq!(Split::of_key(FeatureKey(s.key_bits() | FeatureKey::ALL.0)), s);
-                        assert_eq!(s.key_bits() & !MASK, 0);
+                        assert_eq!(Split::of_key(s.key() | FeatureKey::ALL), s);
+                        assert_eq!(s.key().bits() & !MASK, 0);
                     }
                 }
             }

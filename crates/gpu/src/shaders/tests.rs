@@ -7,16 +7,15 @@ use std::collections::HashMap;
 /// path tracer's light loop; emissive and dielectric: emitters and shadow crossing), for
 /// the shading programs that read them: 2048 + 5 × 64 keys instead of 2^14 (the other
 /// flags only change traversal and BSDF code, which the asset code does not touch).
-fn keys_to_validate() -> Vec<u32> {
-    let base = FeatureKey::ASSETS.trailing_zeros();
-    let mut keys: Vec<u32> = (0..(1u32 << base)).collect();
+fn keys_to_validate() -> Vec<FeatureKey> {
+    let below_assets = || (0..1u32 << FeatureKey::ASSETS.bits().trailing_zeros()).map(FeatureKey::from_bits_retain);
+    let mut keys: Vec<FeatureKey> = below_assets().collect();
     let met = FeatureKey::SPHERES
         | FeatureKey::TRIANGLES
         | FeatureKey::BVH
         | FeatureKey::POINT_LIGHTS
         | FeatureKey::EMISSIVE
         | FeatureKey::DIELECTRIC;
-    let skip = !met & ((1 << base) - 1);
     for assets in [
         FeatureKey::PBR | FeatureKey::ALPHA | FeatureKey::TEXTURES,
         FeatureKey::ALPHA,
@@ -26,9 +25,9 @@ fn keys_to_validate() -> Vec<u32> {
         FeatureKey::ENVIRONMENT,
         FeatureKey::ENVIRONMENT | FeatureKey::ENV_MAP,
         FeatureKey::TEXTURES | FeatureKey::ENVIRONMENT,
-        FeatureKey::ALL.0 & FeatureKey::ASSETS,
+        FeatureKey::ALL & FeatureKey::ASSETS,
     ] {
-        keys.extend((0..(1u32 << base)).filter(|k| k & skip == 0).map(|k| k | assets));
+        keys.extend(below_assets().filter(|&k| met.contains(k)).map(|k| k | assets));
     }
     keys
 }
@@ -38,15 +37,13 @@ fn every_feature_key_composes_and_validates() {
     use rayon::prelude::*;
     let failures: Vec<String> = keys_to_validate()
         .into_par_iter()
-        .flat_map_iter(|bits| {
-            let key = FeatureKey(bits);
-            [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View]
-                .into_iter()
-                .filter(move |&p| key.for_program(p) == key)
-                .filter_map(move |p| match compose(p, key) {
+        .flat_map_iter(|key| {
+            Program::ALL.into_iter().filter(move |&p| key.for_program(p) == key).filter_map(move |p| {
+                match compose(p, key) {
                     Ok(m) => validate(p, key, &m).err().map(|e| e.to_string()),
                     Err(e) => Some(format!("{}: {e}", key.label())),
-                })
+                }
+            })
         })
         .collect();
     assert!(failures.is_empty(), "{} variants fail, first: {}", failures.len(), failures[0]);
@@ -67,9 +64,9 @@ fn split_keys() -> Vec<FeatureKey> {
     let mesh = FeatureKey::TRIANGLES | FeatureKey::BVH | FeatureKey::POINT_LIGHTS;
     let mut keys = Vec::new();
     for parts in splits {
-        let bits = Split::with_parts(parts, 27).key_bits();
-        for base in [mesh, FeatureKey::ALL.0] {
-            keys.extend([FeatureKey(base | bits), FeatureKey(base | bits | FeatureKey::LOAD64)]);
+        let split = Split::with_parts(parts, 27).key();
+        for base in [mesh, FeatureKey::ALL] {
+            keys.extend([base | split, base | split | FeatureKey::LOAD64]);
         }
     }
     keys
@@ -81,12 +78,10 @@ fn every_split_composes_and_validates() {
     let failures: Vec<String> = split_keys()
         .into_par_iter()
         .flat_map_iter(|key| {
-            [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View].into_iter().filter_map(
-                move |p| match compose(p, key) {
-                    Ok(m) => validate(p, key, &m).err().map(|e| e.to_string()),
-                    Err(e) => Some(format!("{}: {e}", key.label())),
-                },
-            )
+            Program::ALL.into_iter().filter_map(move |p| match compose(p, key) {
+                Ok(m) => validate(p, key, &m).err().map(|e| e.to_string()),
+                Err(e) => Some(format!("{}: {e}", key.label())),
+            })
         })
         .collect();
     assert!(failures.is_empty(), "{} variants fail, first: {}", failures.len(), failures[0]);
@@ -97,14 +92,14 @@ fn every_split_composes_and_validates() {
 /// an unsplit variant contains none of them.
 #[test]
 fn parts_are_declared_where_the_host_binds_them_and_only_in_split_variants() {
-    use crate::split::{Split, SplitArray, extra_binding};
+    use crate::split::{MAX_PARTS, Split, SplitArray, extra_binding};
     let names = |a: SplitArray| match a {
         SplitArray::Triangles => "triangles",
         SplitArray::Nodes => "nodes",
         SplitArray::LeafTriangles => "leaf_triangles",
     };
-    for load64 in [0, FeatureKey::LOAD64] {
-        let split = FeatureKey(FeatureKey::ALL.0 | load64 | Split::with_parts([4, 4, 4], 27).key_bits());
+    for load64 in [FeatureKey::empty(), FeatureKey::LOAD64] {
+        let split = FeatureKey::ALL | load64 | Split::with_parts([4, 4, 4], 27).key();
         let m = compose(Program::Path, split).unwrap();
         let bindings: HashMap<String, u32> = m
             .global_variables
@@ -115,16 +110,16 @@ fn parts_are_declared_where_the_host_binds_them_and_only_in_split_variants() {
             })
             .collect();
         for array in SplitArray::ALL {
-            for p in 1..crate::split::MAX_PARTS {
+            for p in 1..MAX_PARTS {
                 let name = format!("{}_{p}", names(array));
                 assert_eq!(bindings.get(&name), Some(&extra_binding(array, p)), "{name}");
             }
         }
         let text = to_wgsl(&m, &validate(Program::Path, split, &m).unwrap());
-        let unsplit = FeatureKey(FeatureKey::ALL.0 | load64);
+        let unsplit = FeatureKey::ALL | load64;
         let plain = compose(Program::Path, unsplit).unwrap();
         let plain_text = to_wgsl(&plain, &validate(Program::Path, unsplit, &plain).unwrap());
-        let selectors: &[&str] = if load64 != 0 {
+        let selectors: &[&str] = if load64.contains(FeatureKey::LOAD64) {
             &["scene_triangle", "node_half", "leaf_word"]
         } else {
             &["scene_triangle", "node_at", "leaf_at"]
@@ -219,7 +214,7 @@ fn the_key_of_a_scene_is_the_key_of_its_buffers() {
     let mut paths: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
     paths.extend(asset_scenes(assets.path()));
     let mut seen = 0;
-    let mut flags = 0;
+    let mut flags = FeatureKey::empty();
     for path in paths {
         if path.extension().is_none_or(|x| x != "toml") {
             continue;
@@ -227,18 +222,17 @@ fn the_key_of_a_scene_is_the_key_of_its_buffers() {
         let scene = strahl_core::scene::Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
         let prep = strahl_core::render::Prepared::new(scene.clone());
         assert_eq!(FeatureKey::of_scene(&scene, &prep.prims), FeatureKey::for_scene(&prep.gpu), "{}", path.display());
-        flags |= FeatureKey::for_scene(&prep.gpu).0;
+        flags |= FeatureKey::for_scene(&prep.gpu);
         seen += 1;
     }
     assert!(seen >= 11, "only {seen} scenes");
     // Every scene flag was met by some scene.
-    let scene_flags = FeatureKey::ALL.0;
-    assert_eq!(flags & scene_flags, scene_flags, "flags no scene had: {}", FeatureKey(scene_flags & !flags).label());
+    assert!(flags.contains(FeatureKey::ALL), "flags no scene had: {}", (FeatureKey::ALL - flags).label());
 }
 
 #[test]
 fn a_sphere_only_shader_contains_no_other_primitive_code() {
-    let key = FeatureKey(FeatureKey::SPHERES | FeatureKey::POINT_LIGHTS);
+    let key = FeatureKey::SPHERES | FeatureKey::POINT_LIGHTS;
     let m = compose(Program::Whitted, key).unwrap();
     let text = to_wgsl(&m, &validate(Program::Whitted, key, &m).unwrap());
     assert!(text.contains("sphere_roots"), "the sphere code is there");
@@ -288,7 +282,7 @@ fn a_sphere_only_shader_contains_no_other_primitive_code() {
 /// flow (shaders/modules/bindings.wgsl): no program binds a uniform buffer.
 #[test]
 fn no_program_binds_a_uniform_buffer() {
-    for p in [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View] {
+    for p in Program::ALL {
         let key = FeatureKey::ALL.for_program(p);
         let m = compose(p, key).unwrap();
         let uniforms: Vec<_> = m
@@ -308,8 +302,8 @@ fn shared_constants_reach_the_composed_shaders_exactly() {
     use crate::shared::{Shared, constants};
     let shared: HashMap<&str, Shared> = constants().into_iter().collect();
     let mut seen = std::collections::HashSet::new();
-    for p in [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View] {
-        for key in [FeatureKey::ALL, FeatureKey(FeatureKey::ALL.0 | FeatureKey::LOAD64)] {
+    for p in Program::ALL {
+        for key in [FeatureKey::ALL, FeatureKey::ALL | FeatureKey::LOAD64] {
             let m = compose(p, key).unwrap();
             for (_, c) in m.constants.iter() {
                 let Some(name) = c.name.as_deref().and_then(|n| n.split("X_naga_oil_mod_X").next()) else {
