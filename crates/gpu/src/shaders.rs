@@ -1,6 +1,13 @@
 //! WGSL sources, composed per scene with naga_oil: a scene's [`FeatureKey`] picks the shader
 //! defs, so a variant contains only the primitive, material and light code the scene uses.
 //!
+//! The sources have one template syntax besides the preprocessor's `#ifdef NAME` and
+//! `#if NAME > N`: `#{NAME}` stands for a value. Values the shaders share with the host are
+//! the same in every variant and are written into the texts once, before the composer reads
+//! them ([`crate::shared`]); a value of the variant (the elements per part of an array split
+//! across bindings, [`crate::split`]) is a shader def of its key ([`FeatureKey::shader_defs`]),
+//! which naga_oil writes in where it composes that variant.
+//!
 //! One composer serves the process ([`compose()`]): the modules are added once, and naga_oil
 //! keeps each module's variants by the defs it reads.
 

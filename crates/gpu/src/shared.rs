@@ -1,7 +1,11 @@
 //! The values the shaders share with the host, written once, in Rust: every `#{NAME}` in a
-//! shader source is replaced by the value of `NAME` below, as a WGSL literal, before the source
-//! is composed. So a material kind, a flag bit, a stack depth or a tolerance has one definition
-//! that the CPU twin and the GPU both read, instead of two kept in step by comments.
+//! shader source whose NAME is a value below is replaced by its WGSL literal when the composer
+//! reads the source. So a material kind, a flag bit, a stack depth or a tolerance has one
+//! definition that the CPU twin and the GPU both read, instead of two kept in step by comments.
+//!
+//! `#{NAME}` is the shaders' one template syntax ([`crate::shaders`]): a NAME that is not
+//! shared here is a value of the variant, a shader def of its key (the elements per part of a
+//! split array, [`crate::split::SplitArray::defs`]), which naga_oil writes in per variant.
 
 use strahl_core::math::Real;
 
@@ -166,22 +170,27 @@ mod tests {
         }
     }
 
+    /// Every `#{NAME}` is a shared value or a value of the variant, every shared value is used,
+    /// and the shaders write no value in naga_oil's other form, `#NAME`.
     #[test]
-    fn every_placeholder_in_the_shaders_is_a_shared_value() {
-        let sources = super::super::shaders::MODULES.iter().map(|&(f, s)| (f, s)).chain(
-            [
-                super::super::Program::Whitted,
-                super::super::Program::Path,
-                super::super::Program::Wavefront,
-                super::super::Program::Trace,
-                super::super::Program::View,
-            ]
-            .map(|p| p.source()),
-        );
+    fn every_placeholder_in_the_shaders_is_a_shared_value_or_a_value_of_the_variant() {
+        use crate::split::SplitArray;
+        let sources = crate::shaders::MODULES.iter().copied().chain(crate::Program::ALL.map(|p| p.source()));
+        let of_variant: Vec<&str> = SplitArray::ALL.iter().map(|a| a.defs().1).collect();
+        let directives = ["#define_import_path", "#import", "#ifdef", "#ifndef", "#if", "#else", "#endif"];
         let mut used = std::collections::HashSet::new();
         for (file, src) in sources {
             let out = substitute(src);
-            assert!(!out.contains("#{"), "{file}: a #{{NAME}} without a shared value");
+            for (_, rest) in out.match_indices("#{").map(|(i, _)| out.split_at(i + 2)) {
+                let name = &rest[..rest.find('}').expect("a closing brace")];
+                assert!(of_variant.contains(&name), "{file}: #{{{name}}} is neither shared nor of the variant");
+            }
+            for line in src.lines().map(|l| l.split("//").next().unwrap().trim_start()) {
+                for (i, _) in line.match_indices('#').filter(|(i, _)| !line[i + 1..].starts_with('{')) {
+                    let word = line[i..].split(|c: char| c.is_whitespace()).next().unwrap();
+                    assert!(i == 0 && directives.contains(&word), "{file}: {line}: #NAME is written #{{NAME}} here");
+                }
+            }
             for (name, _) in constants() {
                 if src.contains(&format!("#{{{name}}}")) {
                     used.insert(name);
@@ -190,5 +199,7 @@ mod tests {
         }
         let unused: Vec<_> = constants().into_iter().map(|(n, _)| n).filter(|n| !used.contains(n)).collect();
         assert!(unused.is_empty(), "shared values no shader uses: {unused:?}");
+        let clashes: Vec<_> = constants().into_iter().map(|(n, _)| n).filter(|n| of_variant.contains(n)).collect();
+        assert!(clashes.is_empty(), "shared values named like values of the variant: {clashes:?}");
     }
 }

@@ -66,52 +66,36 @@
 // With LOAD64 the nodes and leaf triangles are read as 64-bit words (strahl::traverse::fetch_node):
 // a node as two 32-byte reads, a leaf triangle as three 16-byte reads.
 #ifdef LOAD64
-@group(0) @binding(5) var<storage, read> nodes: array<vec4<u64>>;
-#if NODE_PARTS > 1
-@group(0) @binding(19) var<storage, read> nodes_1: array<vec4<u64>>;
-#endif
-#if NODE_PARTS > 2
-@group(0) @binding(20) var<storage, read> nodes_2: array<vec4<u64>>;
-#endif
-#if NODE_PARTS > 3
-@group(0) @binding(21) var<storage, read> nodes_3: array<vec4<u64>>;
-#endif
+alias NodeElement = vec4<u64>;
 #else
-@group(0) @binding(5) var<storage, read> nodes: array<Node>;
+alias NodeElement = Node;
+#endif
+@group(0) @binding(5) var<storage, read> nodes: array<NodeElement>;
 #if NODE_PARTS > 1
-@group(0) @binding(19) var<storage, read> nodes_1: array<Node>;
+@group(0) @binding(19) var<storage, read> nodes_1: array<NodeElement>;
 #endif
 #if NODE_PARTS > 2
-@group(0) @binding(20) var<storage, read> nodes_2: array<Node>;
+@group(0) @binding(20) var<storage, read> nodes_2: array<NodeElement>;
 #endif
 #if NODE_PARTS > 3
-@group(0) @binding(21) var<storage, read> nodes_3: array<Node>;
-#endif
+@group(0) @binding(21) var<storage, read> nodes_3: array<NodeElement>;
 #endif
 @group(0) @binding(6) var<storage, read> shape_refs: array<u32>;
 #ifdef TRIANGLES
 #ifdef LOAD64
-@group(0) @binding(10) var<storage, read> leaf_triangles: array<vec2<u64>>;
-#if LEAF_TRIANGLE_PARTS > 1
-@group(0) @binding(22) var<storage, read> leaf_triangles_1: array<vec2<u64>>;
-#endif
-#if LEAF_TRIANGLE_PARTS > 2
-@group(0) @binding(23) var<storage, read> leaf_triangles_2: array<vec2<u64>>;
-#endif
-#if LEAF_TRIANGLE_PARTS > 3
-@group(0) @binding(24) var<storage, read> leaf_triangles_3: array<vec2<u64>>;
-#endif
+alias LeafElement = vec2<u64>;
 #else
-@group(0) @binding(10) var<storage, read> leaf_triangles: array<LeafTriangle>;
+alias LeafElement = LeafTriangle;
+#endif
+@group(0) @binding(10) var<storage, read> leaf_triangles: array<LeafElement>;
 #if LEAF_TRIANGLE_PARTS > 1
-@group(0) @binding(22) var<storage, read> leaf_triangles_1: array<LeafTriangle>;
+@group(0) @binding(22) var<storage, read> leaf_triangles_1: array<LeafElement>;
 #endif
 #if LEAF_TRIANGLE_PARTS > 2
-@group(0) @binding(23) var<storage, read> leaf_triangles_2: array<LeafTriangle>;
+@group(0) @binding(23) var<storage, read> leaf_triangles_2: array<LeafElement>;
 #endif
 #if LEAF_TRIANGLE_PARTS > 3
-@group(0) @binding(24) var<storage, read> leaf_triangles_3: array<LeafTriangle>;
-#endif
+@group(0) @binding(24) var<storage, read> leaf_triangles_3: array<LeafElement>;
 #endif
 #endif
 #endif

@@ -6,10 +6,7 @@
 #import strahl::types::{Emitter, Light, LIGHT_POINT, LIGHT_STAND_IN, KIND_TRIANGLE, INDEX_BITS, INDEX_MASK, MATERIAL_TWO_SIDED, F32_MAX}
 #import strahl::bindings::{frame, emitters, lights, materials}
 #ifdef TRIANGLES
-#import strahl::bindings::triangles
-#if TRIANGLE_PARTS > 1
 #import strahl::traverse::scene_triangle
-#endif
 #endif
 #ifdef SPHERES
 #import strahl::bindings::spheres
@@ -106,11 +103,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     var found = false;
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
-#if TRIANGLE_PARTS > 1
         let t = scene_triangle(i);
-#else
-        let t = triangles[i];
-#endif
         let su = sqrt(u.y);
         let b0 = 1.0 - su;
         let b1 = u.z * su;

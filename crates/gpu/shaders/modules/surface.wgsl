@@ -12,10 +12,7 @@
 #import strahl::bindings::{triangle_attrs, textures}
 #import strahl::texture::texture_sample
 #ifdef TRIANGLES
-#import strahl::bindings::triangles
-#if TRIANGLE_PARTS > 1
 #import strahl::traverse::scene_triangle
-#endif
 #endif
 #endif
 
@@ -142,11 +139,7 @@ fn emission(m: Material, prim: u32, p: vec3<f32>) -> vec3<f32> {
 #ifdef TRIANGLES
     if m.radiance_texture != 0u && (prim >> INDEX_BITS) == KIND_TRIANGLE {
         let i = prim & INDEX_MASK;
-#if TRIANGLE_PARTS > 1
         let tri = scene_triangle(i);
-#else
-        let tri = triangles[i];
-#endif
         let bc = barycentrics(tri.va, tri.vb, tri.vc, p);
         return m.radiance * look(m.radiance_texture, i, vec3<f32>(1.0 - bc.x - bc.y, bc.x, bc.y)).xyz;
     }
@@ -164,11 +157,7 @@ fn surface(m: Material, prim: u32, p: vec3<f32>, n: vec3<f32>) -> Surface {
         return s;
     }
     let i = prim & INDEX_MASK;
-#if TRIANGLE_PARTS > 1
     let tri = scene_triangle(i);
-#else
-    let tri = triangles[i];
-#endif
     let bc = barycentrics(tri.va, tri.vb, tri.vc, p);
     let w = vec3<f32>(1.0 - bc.x - bc.y, bc.x, bc.y);
     let a = triangle_attrs[i];

@@ -5,7 +5,9 @@
 // the tree; without it every bounded primitive is tested), LOAD64 (the device reads 64-bit
 // words: nodes and leaf triangles are fetched as such, see fetch_node) and TRIANGLE_PARTS,
 // NODE_PARTS, LEAF_TRIANGLE_PARTS (arrays larger than one binding, bound in parts: see
-// node_half; 1 for every scene whose arrays fit).
+// scene_triangle; 1 for every scene whose arrays fit). The accessors scene_triangle,
+// fetch_node and fetch_leaf_triangle exist in every variant that has the array and make
+// those choices inside, so their callers read the same whatever the variant.
 //
 // What this is shaped for: on a device that runs invocations as the lanes of one SIMD program
 // (lavapipe: 8 lanes on the CPU), a storage-buffer read whose address differs per lane costs
@@ -18,28 +20,12 @@
 #import strahl::types::{INDEX_BITS, INDEX_MASK, KIND_SPHERE, KIND_CYLINDER, KIND_TRIANGLE, KIND_PLANE, PART_SURFACE}
 #ifdef BVH
 #import strahl::types::{Node, F32_MAX, LINK_LEAF, LINK_SHAPES, LINK_COUNT_SHIFT, LINK_FIRST_MASK, LINK_EMPTY}
-#import strahl::bindings::{nodes, shape_refs}
-#if NODE_PARTS > 1
-#import strahl::bindings::nodes_1
-#endif
-#if NODE_PARTS > 2
-#import strahl::bindings::nodes_2
-#endif
-#if NODE_PARTS > 3
-#import strahl::bindings::nodes_3
-#endif
+// The parts after the first of a split array exist in split variants only, and only code of
+// those uses them (an imported item that no code uses is not looked up).
+#import strahl::bindings::{nodes, nodes_1, nodes_2, nodes_3, shape_refs}
 #ifdef TRIANGLES
 #import strahl::types::LeafTriangle
-#import strahl::bindings::leaf_triangles
-#if LEAF_TRIANGLE_PARTS > 1
-#import strahl::bindings::leaf_triangles_1
-#endif
-#if LEAF_TRIANGLE_PARTS > 2
-#import strahl::bindings::leaf_triangles_2
-#endif
-#if LEAF_TRIANGLE_PARTS > 3
-#import strahl::bindings::leaf_triangles_3
-#endif
+#import strahl::bindings::{leaf_triangles, leaf_triangles_1, leaf_triangles_2, leaf_triangles_3}
 #endif
 #endif
 #import strahl::roots::{Roots, roots_empty}
@@ -52,17 +38,8 @@
 #import strahl::cylinder::{cylinder_roots, cylinder_first, cylinder_normal}
 #endif
 #ifdef TRIANGLES
-#import strahl::bindings::triangles
-#if TRIANGLE_PARTS > 1
 #import strahl::types::Triangle
-#import strahl::bindings::triangles_1
-#endif
-#if TRIANGLE_PARTS > 2
-#import strahl::bindings::triangles_2
-#endif
-#if TRIANGLE_PARTS > 3
-#import strahl::bindings::triangles_3
-#endif
+#import strahl::bindings::{triangles, triangles_1, triangles_2, triangles_3}
 #import strahl::triangle::{triangle_roots, triangle_intersect, vertices_intersect, shear_new, Shear, triangle_normal}
 #endif
 #ifdef PLANES
@@ -103,16 +80,16 @@ fn prim_ref(kind: u32, index: u32) -> u32 {
     return (kind << INDEX_BITS) | index;
 }
 
-// Reading a split array (crates/gpu/src/split.rs): element i lies in part i / PER_PART at
-// i % PER_PART (PER_PART a constant of the variant, substituted by the composer). A binding
-// cannot be indexed by a value, so branches pick the part, part 0 last. Only variants of
-// scenes with an array larger than one binding contain these functions.
+// Reading a split array (crates/gpu/src/split.rs): element e lies in part e / PER_PART at
+// e % PER_PART (PER_PART a value of the variant: TRIANGLES_PER_PART and the like). A binding
+// cannot be indexed by a value, so branches pick the part, part 0 last. Where the array is
+// whole, its accessor reads it directly.
 #ifdef TRIANGLES
-#if TRIANGLE_PARTS > 1
 // Triangle i of the scene order.
 fn scene_triangle(i: u32) -> Triangle {
-    let p = i / #TRIANGLES_PER_PART;
-    let j = i - p * #TRIANGLES_PER_PART;
+#if TRIANGLE_PARTS > 1
+    let p = i / #{TRIANGLES_PER_PART};
+    let j = i - p * #{TRIANGLES_PER_PART};
     if p == 1u {
         return triangles_1[j];
     }
@@ -127,8 +104,10 @@ fn scene_triangle(i: u32) -> Triangle {
     }
 #endif
     return triangles[j];
-}
+#else
+    return triangles[i];
 #endif
+}
 #endif
 
 // Every root of primitive r in (tmin, tmax).
@@ -147,11 +126,7 @@ fn prim_roots(r: u32, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots
 #endif
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
-#if TRIANGLE_PARTS > 1
         return triangle_roots(scene_triangle(i), o, d, tmin, tmax);
-#else
-        return triangle_roots(triangles[i], o, d, tmin, tmax);
-#endif
     }
 #endif
 #ifdef PLANES
@@ -179,11 +154,7 @@ fn prim_first(r: u32, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> vec2<
 #endif
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
-#if TRIANGLE_PARTS > 1
         return vec2<f32>(triangle_intersect(scene_triangle(i), o, shear_new(d), tmin, tmax), 0.0);
-#else
-        return vec2<f32>(triangle_intersect(triangles[i], o, shear_new(d), tmin, tmax), 0.0);
-#endif
     }
 #endif
 #ifdef PLANES
@@ -210,11 +181,7 @@ fn prim_normal(r: u32, o: vec3<f32>, d: vec3<f32>, t: f32, part: u32) -> vec3<f3
 #endif
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
-#if TRIANGLE_PARTS > 1
         return triangle_normal(scene_triangle(i));
-#else
-        return triangle_normal(triangles[i]);
-#endif
     }
 #endif
 #ifdef PLANES
@@ -243,11 +210,7 @@ fn prim_tag(r: u32) -> vec3<u32> {
 #endif
 #ifdef TRIANGLES
     if kind == KIND_TRIANGLE {
-#if TRIANGLE_PARTS > 1
         let t = scene_triangle(i);
-#else
-        let t = triangles[i];
-#endif
         return vec3<u32>(t.object, t.face, t.material);
     }
 #endif
@@ -340,7 +303,12 @@ fn slab(lo: vec3<f32>, hi: vec3<f32>, o: vec3<f32>, inv: vec3<f32>, tmin: f32, t
     return -1.0;
 }
 
+// The elements of the nodes binding (strahl::bindings): with LOAD64 a node is two 32-byte
+// halves of four 64-bit words (see fetch_node), else one element.
 #ifdef LOAD64
+alias NodeElement = vec4<u64>;
+const NODE_ELEMENTS: u32 = 2u;
+
 // The two 32-bit halves of a 64-bit word (little-endian, as the host wrote the 32-bit fields).
 fn low_u32(v: u64) -> u32 {
     return u32(v & 0xfffffffflu);
@@ -352,19 +320,17 @@ fn high_u32(v: u64) -> u32 {
 fn vec3_word(w: vec2<u64>) -> vec3<f32> {
     return vec3<f32>(bitcast<f32>(low_u32(w.x)), bitcast<f32>(high_u32(w.x)), bitcast<f32>(low_u32(w.y)));
 }
+#else
+alias NodeElement = Node;
+const NODE_ELEMENTS: u32 = 1u;
 #endif
 
+// Element e of the nodes binding, NODE_ELEMENTS per node (a split array: see scene_triangle).
+fn node_element(e: u32) -> NodeElement {
 #if NODE_PARTS > 1
-// Of the split nodes (see scene_triangle): with LOAD64 half w (0 or 1) of node i, else node i.
-#ifdef LOAD64
-fn node_half(i: u32, w: u32) -> vec4<u64> {
-    let p = i / #NODES_PER_PART;
-    let j = 2u * (i - p * #NODES_PER_PART) + w;
-#else
-fn node_at(i: u32) -> Node {
-    let p = i / #NODES_PER_PART;
-    let j = i - p * #NODES_PER_PART;
-#endif
+    let per_part = NODE_ELEMENTS * #{NODES_PER_PART};
+    let p = e / per_part;
+    let j = e - p * per_part;
     if p == 1u {
         return nodes_1[j];
     }
@@ -379,8 +345,10 @@ fn node_at(i: u32) -> Node {
     }
 #endif
     return nodes[j];
-}
+#else
+    return nodes[e];
 #endif
+}
 
 // Inner node i. With LOAD64 as two 32-byte reads of four 64-bit words each: a SIMD device
 // that reads storage lane by lane (lavapipe) pays a mask test, a bounds check and a scalar
@@ -388,40 +356,36 @@ fn node_at(i: u32) -> Node {
 // fewer, wider reads cost less (see min_of for what this measured).
 fn fetch_node(i: u32) -> Node {
 #ifdef LOAD64
-#if NODE_PARTS > 1
-    let h0 = node_half(i, 0u);
-    let h1 = node_half(i, 1u);
-#else
-    let h0 = nodes[2u * i];
-    let h1 = nodes[2u * i + 1u];
-#endif
+    let h0 = node_element(2u * i);
+    let h1 = node_element(2u * i + 1u);
     let a = h0.xy;
     let b = h0.zw;
     let c = h1.xy;
     let e = h1.zw;
     return Node(vec3_word(a), high_u32(a.y), vec3_word(b), high_u32(b.y), vec3_word(c), 0u, vec3_word(e), 0u);
 #else
-#if NODE_PARTS > 1
-    return node_at(i);
-#else
-    return nodes[i];
-#endif
+    return node_element(i);
 #endif
 }
 
 #ifdef TRIANGLES
-#if LEAF_TRIANGLE_PARTS > 1
-// Of the split leaf triangles (see scene_triangle): with LOAD64 word w (0 .. 2) of leaf
-// triangle k, else leaf triangle k.
+// The elements of the leaf-triangle binding: with LOAD64 a triangle is three 16-byte words of
+// two 64-bit words each, else one element.
 #ifdef LOAD64
-fn leaf_word(k: u32, w: u32) -> vec2<u64> {
-    let p = k / #LEAF_TRIANGLES_PER_PART;
-    let j = 3u * (k - p * #LEAF_TRIANGLES_PER_PART) + w;
+alias LeafElement = vec2<u64>;
+const LEAF_ELEMENTS: u32 = 3u;
 #else
-fn leaf_at(k: u32) -> LeafTriangle {
-    let p = k / #LEAF_TRIANGLES_PER_PART;
-    let j = k - p * #LEAF_TRIANGLES_PER_PART;
+alias LeafElement = LeafTriangle;
+const LEAF_ELEMENTS: u32 = 1u;
 #endif
+
+// Element e of the leaf-triangle binding, LEAF_ELEMENTS per triangle (a split array: see
+// scene_triangle).
+fn leaf_element(e: u32) -> LeafElement {
+#if LEAF_TRIANGLE_PARTS > 1
+    let per_part = LEAF_ELEMENTS * #{LEAF_TRIANGLES_PER_PART};
+    let p = e / per_part;
+    let j = e - p * per_part;
     if p == 1u {
         return leaf_triangles_1[j];
     }
@@ -436,28 +400,20 @@ fn leaf_at(k: u32) -> LeafTriangle {
     }
 #endif
     return leaf_triangles[j];
-}
+#else
+    return leaf_triangles[e];
 #endif
+}
 
 // Triangle k of the leaf order (see fetch_node for LOAD64).
 fn fetch_leaf_triangle(k: u32) -> LeafTriangle {
 #ifdef LOAD64
-#if LEAF_TRIANGLE_PARTS > 1
-    let a = leaf_word(k, 0u);
-    let b = leaf_word(k, 1u);
-    let c = leaf_word(k, 2u);
-#else
-    let a = leaf_triangles[3u * k];
-    let b = leaf_triangles[3u * k + 1u];
-    let c = leaf_triangles[3u * k + 2u];
-#endif
+    let a = leaf_element(3u * k);
+    let b = leaf_element(3u * k + 1u);
+    let c = leaf_element(3u * k + 2u);
     return LeafTriangle(vec3_word(a), high_u32(a.y), vec3_word(b), high_u32(b.y), vec3_word(c), 0u);
 #else
-#if LEAF_TRIANGLE_PARTS > 1
-    return leaf_at(k);
-#else
-    return leaf_triangles[k];
-#endif
+    return leaf_element(k);
 #endif
 }
 #endif
