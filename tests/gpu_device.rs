@@ -125,7 +125,7 @@ fn a_pipeline_the_device_refuses_is_an_error_message() {
     let err = failing_render(dir.path(), &shaders);
     assert!(!err.contains("panicked"), "{err}");
     let line = err.lines().find(|l| l.starts_with("error: ")).unwrap_or_else(|| panic!("no error line: {err}"));
-    assert!(line.contains("pipeline") && line.contains("Render"), "{line}");
+    assert!(line.contains("pipeline") && line.contains("Whitted"), "{line}");
 }
 
 /// A shader that does not compose is reported where it is wrong: the file, line and column,
