@@ -139,7 +139,7 @@ mod tests {
     #[test]
     fn hidden_objects_leave_the_scene_and_the_rest_keep_their_ids() {
         let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/scenes/lecture.toml"));
-        let scene = Scene::load(&path).unwrap();
+        let scene = Scene::load(path).unwrap();
         let n = scene.objects.len();
         assert!(n >= 3);
         let all = Prepared::with_visible(scene.clone(), &vec![true; n]);
