@@ -272,8 +272,7 @@ fn safe_inverse(d: vec3<f32>) -> vec3<f32> {
 
 // The smaller and the larger of two floats that are not NaN, as one comparison and one select:
 // the min and max builtins also order NaN, which lavapipe pays for with a second comparison
-// and a blend per call. With fetch_node's 32-byte reads: 4 % fewer shader instructions in path
-// tracing on the seed scene, 3 % in Whitted (each change alone: about 1 %).
+// and a blend per call (the book's performance chapter has what it saved).
 fn min_of(a: f32, b: f32) -> f32 {
     return select(b, a, a < b);
 }
@@ -353,7 +352,7 @@ fn node_element(e: u32) -> NodeElement {
 // Inner node i. With LOAD64 as two 32-byte reads of four 64-bit words each: a SIMD device
 // that reads storage lane by lane (lavapipe) pays a mask test, a bounds check and a scalar
 // load per lane and per read, and a few instructions per further word of the same read, so
-// fewer, wider reads cost less (see min_of for what this measured).
+// fewer, wider reads cost less.
 fn fetch_node(i: u32) -> Node {
 #ifdef LOAD64
     let h0 = node_element(2u * i);
@@ -421,8 +420,7 @@ fn fetch_leaf_triangle(k: u32) -> LeafTriangle {
 // The traversal stack: child links and the distances at which the ray enters their boxes. The
 // most recent entry is held in `top` (link, entry distance bits) while `top_held`, out of the
 // array, which a SIMD device indexes lane by lane (lavapipe: a scalar store or load per lane and
-// word); the next pop usually takes it (2 % fewer shader instructions in path tracing on the
-// seed scene, 1 % in Whitted). The order of entries is that of a plain stack.
+// word); the next pop usually takes it. The order of entries is that of a plain stack.
 struct Stack {
     entries: array<vec2<u32>, GPU_STACK>,
     size: u32,
@@ -556,8 +554,8 @@ fn walk(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32, any_hit: bool) -> Near
         cur = LINK_EMPTY;
     }
     // One loop whose iterations take one node step or one leaf: SIMD lanes at leaves and
-    // lanes at inner nodes advance together (measured on lavapipe: cheaper than separate
-    // loops for node steps and leaves, which make lanes wait for each other).
+    // lanes at inner nodes advance together (cheaper on lavapipe than separate loops for node
+    // steps and leaves, which make lanes wait for each other).
     while cur != LINK_EMPTY {
         if !link_is_leaf(cur) {
             cur = visit_node(&stack, cur, o, inv, tmin, search_bound(best));
