@@ -499,3 +499,147 @@ fn rust_fields(name: &str) -> Vec<String> {
         .filter_map(|l| l.trim().strip_prefix("pub ")?.split_once(':').map(|(f, _)| f.trim().to_string()))
         .collect()
 }
+
+/// The keys whose translations [`every_backend_translates_and_the_validators_accept`] checks,
+/// per program: a deterministic subset of the sweep (whose 2624 keys × 5 programs through four
+/// backends and two external validators would take minutes): no flag, every flag, every flag
+/// with 64-bit loads, each flag alone and every flag but one (each with its implied flags), and
+/// the split variants of [`split_keys`].
+fn keys_to_translate() -> Vec<(Program, FeatureKey)> {
+    let flags: Vec<FeatureKey> = FeatureKey::all().iter().collect();
+    // ENV_MAP implies ENVIRONMENT: alone it is the map; without ENVIRONMENT there is neither.
+    let alone = |f: FeatureKey| if f == FeatureKey::ENV_MAP { f | FeatureKey::ENVIRONMENT } else { f };
+    let but = |f: FeatureKey| {
+        let k = FeatureKey::all() - f;
+        if f == FeatureKey::ENVIRONMENT { k - FeatureKey::ENV_MAP } else { k }
+    };
+    let mut keys = vec![FeatureKey::empty(), FeatureKey::ALL, FeatureKey::ALL | FeatureKey::LOAD64];
+    keys.extend(flags.iter().map(|&f| alone(f)));
+    keys.extend(flags.iter().map(|&f| but(f)));
+    let mut out: Vec<(Program, FeatureKey)> = Vec::new();
+    for p in Program::ALL {
+        for &k in keys.iter().chain(&split_keys()) {
+            let k = k.for_program(p);
+            if !out.contains(&(p, k)) {
+                out.push((p, k));
+            }
+        }
+    }
+    out
+}
+
+/// An external validator, or a panic naming the Debian package that has it.
+fn tool(name: &str, package: &str) -> std::path::PathBuf {
+    let found = std::env::var_os("PATH")
+        .and_then(|paths| std::env::split_paths(&paths).map(|d| d.join(name)).find(|p| p.is_file()));
+    found.unwrap_or_else(|| panic!("{name} not found: install the package {package} (.ci/run does)"))
+}
+
+/// Every checked variant ([`keys_to_translate`]) translates to SPIR-V that `spirv-val`
+/// accepts for Vulkan 1.1, to GLSL ES 3.10 compute shaders (one per entry point) that
+/// `glslangValidator` accepts, and to MSL and HLSL (shader model 6.0) without error: the
+/// WGSL is portable to every backend wgpu has, not only to the Vulkan one it runs on.
+///
+/// Excluded: GLSL for the LOAD64 variants, since GLSL ES has no 64-bit integers (the GL
+/// backend could never run them; wgpu adds LOAD64 only on devices with `SHADER_INT64`).
+#[test]
+fn every_backend_translates_and_the_validators_accept() {
+    use naga::back::{glsl, hlsl, msl, spv};
+    use rayon::prelude::*;
+    let started = std::time::Instant::now();
+    let spirv_val = tool("spirv-val", "spirv-tools");
+    let glslang = tool("glslangValidator", "glslang-tools");
+    let dir = tempfile::tempdir().unwrap();
+    let variants = keys_to_translate();
+    let results: Vec<(Vec<String>, Vec<std::path::PathBuf>)> = variants
+        .par_iter()
+        .enumerate()
+        .map(|(i, &(p, key))| {
+            let name = format!("{p:?} {}", key.label());
+            let mut failures = Vec::new();
+            let mut glsl_files = Vec::new();
+            let m = match compose(p, key) {
+                Ok(m) => m,
+                Err(e) => return (vec![format!("{name}: {e}")], glsl_files),
+            };
+            let info = match validate(p, key, &m) {
+                Ok(info) => info,
+                Err(e) => return (vec![e.to_string()], glsl_files),
+            };
+            // SPIR-V 1.0, as wgpu writes it by default, validated for Vulkan 1.1.
+            match spv::write_vec(&m, &info, &spv::Options::default(), None) {
+                Ok(words) => {
+                    let path = dir.path().join(format!("{i}.spv"));
+                    std::fs::write(&path, words.iter().flat_map(|w| w.to_le_bytes()).collect::<Vec<u8>>()).unwrap();
+                    let out = std::process::Command::new(&spirv_val)
+                        .args(["--target-env", "vulkan1.1"])
+                        .arg(&path)
+                        .output()
+                        .unwrap();
+                    if !out.status.success() {
+                        failures.push(format!(
+                            "{name}: spirv-val: {}{}",
+                            String::from_utf8_lossy(&out.stdout),
+                            String::from_utf8_lossy(&out.stderr)
+                        ));
+                    }
+                }
+                Err(e) => failures.push(format!("{name}: SPIR-V: {e}")),
+            }
+            if !key.contains(FeatureKey::LOAD64) {
+                for (j, ep) in m.entry_points.iter().enumerate() {
+                    let options = glsl::Options { version: glsl::Version::new_gles(310), ..Default::default() };
+                    let pipeline = glsl::PipelineOptions {
+                        shader_stage: naga::ShaderStage::Compute,
+                        entry_point: ep.name.clone(),
+                        multiview: None,
+                    };
+                    let mut text = String::new();
+                    let written = glsl::Writer::new(&mut text, &m, &info, &options, &pipeline, Default::default())
+                        .and_then(|mut w| w.write());
+                    match written {
+                        Ok(_) => {
+                            let path = dir.path().join(format!("{i}_{j}.comp"));
+                            // The variant's name after the text: `#version` must come first.
+                            std::fs::write(&path, format!("{text}\n// {name} {}\n", ep.name)).unwrap();
+                            glsl_files.push(path);
+                        }
+                        Err(e) => failures.push(format!("{name} {}: GLSL: {e}", ep.name)),
+                    }
+                }
+            }
+            let msl_options = msl::Options { lang_version: (2, 4), ..Default::default() };
+            if let Err(e) = msl::write_string(&m, &info, &msl_options, &msl::PipelineOptions::default()) {
+                failures.push(format!("{name}: MSL: {e}"));
+            }
+            let hlsl_options = hlsl::Options { shader_model: hlsl::ShaderModel::V6_0, ..Default::default() };
+            let mut text = String::new();
+            let pipeline = hlsl::PipelineOptions::default();
+            if let Err(e) = hlsl::Writer::new(&mut text, &hlsl_options, &pipeline).write(&m, &info, None) {
+                failures.push(format!("{name}: HLSL: {e}"));
+            }
+            (failures, glsl_files)
+        })
+        .collect();
+    let translated = started.elapsed();
+    let mut failures: Vec<String> = results.iter().flat_map(|(f, _)| f.clone()).collect();
+    let glsl_files: Vec<&std::path::PathBuf> = results.iter().flat_map(|(_, g)| g).collect();
+    // glslangValidator takes many files at once (each compiled alone): a few calls in all.
+    failures.par_extend(glsl_files.par_chunks(16).filter_map(|files| {
+        let out = std::process::Command::new(&glslang).arg("-S").arg("comp").args(files).output().unwrap();
+        (!out.status.success()).then(|| {
+            format!(
+                "glslangValidator: {}{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            )
+        })
+    }));
+    eprintln!(
+        "{} variants, {} GLSL entry points: translated and SPIR-V validated in {translated:.1?}, all in {:.1?}",
+        variants.len(),
+        glsl_files.len(),
+        started.elapsed()
+    );
+    assert!(failures.is_empty(), "{} failures, first: {}", failures.len(), failures[0]);
+}
