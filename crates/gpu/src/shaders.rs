@@ -102,3 +102,17 @@ pub fn to_wgsl(module: &naga::Module, info: &naga::valid::ModuleInfo) -> String 
     naga::back::wgsl::write_string(module, info, naga::back::wgsl::WriterFlags::empty())
         .unwrap_or_else(|e| format!("// cannot print this module as WGSL: {e}"))
 }
+
+/// The bindings of bind group `group` that `module` declares, in increasing order.
+pub fn group_bindings(module: &naga::Module, group: u32) -> Vec<u32> {
+    let mut bindings: Vec<u32> = module
+        .global_variables
+        .iter()
+        .filter_map(|(_, v)| v.binding.as_ref())
+        .filter(|b| b.group == group)
+        .map(|b| b.binding)
+        .collect();
+    bindings.sort_unstable();
+    bindings.dedup();
+    bindings
+}
