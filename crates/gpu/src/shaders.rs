@@ -15,9 +15,11 @@ mod compose;
 mod feature_key;
 #[cfg(test)]
 mod tests;
+mod wgsl;
 
 pub use compose::compose;
 pub use feature_key::FeatureKey;
+pub use wgsl::{exact_f32_literals, wgsl, write_wgsl};
 
 /// The shared modules, in import order (each may import only those before it).
 pub const MODULES: &[(&str, &str)] = &[
@@ -83,6 +85,8 @@ pub enum ShaderError {
     Compose { file: String, message: String },
     #[error("validating the {program:?} shader for {key}: {message}")]
     Validate { program: Program, key: String, message: String },
+    #[error("writing the {program:?} shader for {key} as WGSL: {message}")]
+    Write { program: Program, key: String, message: String },
 }
 
 /// Validates a composed module with every check naga has; returns its module info.

@@ -31,7 +31,7 @@ impl Shared {
 }
 
 /// `v` (finite) as a WGSL hexadecimal float literal with an `f` suffix.
-fn hex_float(v: f32) -> String {
+pub(crate) fn hex_float(v: f32) -> String {
     assert!(v.is_finite(), "shared floats are finite");
     let bits = v.to_bits();
     let sign = if bits >> 31 != 0 { "-" } else { "" };
