@@ -681,3 +681,5 @@ fn every_pipeline_fits_the_storage_buffers_webgpu_guarantees() {
     }
     assert_eq!(most, MIN_STORAGE_BUFFERS, "the most any unsplit pipeline binds");
 }
+
+mod tint;
