@@ -87,9 +87,9 @@ struct Written {
 /// 64-bit integers), written as WGSL by [`crate::shaders::wgsl`], compiles in Tint, Chromium's
 /// WGSL compiler (headless Chromium, WebGPU on SwiftShader, through `tools/tint-check/`):
 /// no error in `getCompilationInfo()` (warnings are printed), and every compute pipeline
-/// (`layout: 'auto'`) builds whose entry point uses no more storage buffers than the device
-/// offers per stage. Pipelines over that count are reported and allowed only in the programs
-/// of [`MAY_EXCEED_STORAGE_BUFFERS`].
+/// (`layout: 'auto'`) builds whose entry point uses (by naga's count) no more storage buffers
+/// than the device offers per stage. Pipelines over that count are listed, and allowed only in
+/// the programs of [`MAY_EXCEED_STORAGE_BUFFERS`].
 ///
 /// Without `node`, Chromium (`/usr/bin/chromium`, or `$CHROMIUM`) or the package's
 /// `npm ci`, it records a skip; `.ci/run` installs all three.
@@ -164,7 +164,8 @@ fn every_variant_compiles_in_tint() {
     let limit = report["limits"]["maxStorageBuffersPerShaderStage"].as_u64().expect("the device's limit") as usize;
     let modules = report["modules"].as_array().expect("the report's modules");
     assert_eq!(modules.len(), files.len(), "a report per module");
-    let (mut failures, mut warnings, mut over, mut pipelines) = (Vec::new(), Vec::new(), Vec::new(), 0);
+    let (mut failures, mut warnings, mut over, mut pipelines, mut built_over) =
+        (Vec::new(), Vec::new(), Vec::new(), 0, 0);
     for (module, Written { file, program: p, key, entry_points }) in modules.iter().zip(&files) {
         assert_eq!(module["name"], file.as_str());
         let name = format!("{p:?} {} ({file})", key.label());
@@ -184,18 +185,17 @@ fn every_variant_compiles_in_tint() {
             pipelines += 1;
             if *storage > limit {
                 over.push((*p, format!("{name} {entry_point}: {storage} storage buffers: {}", b["errors"])));
-                if b["ok"] == true {
-                    failures
-                        .push(format!("{name} {entry_point}: builds with {storage} storage buffers (naga's count)"));
-                }
+                // naga's count can exceed Dawn's (for the all-features Whitted kernel, by one), so
+                // a pipeline over the limit by naga's count may still build.
+                built_over += usize::from(b["ok"] == true);
             } else if b["ok"] != true {
                 failures.push(format!("{name} {entry_point} ({storage} storage buffers): {}", b["errors"]));
             }
         }
     }
     eprintln!(
-        "{} modules, {pipelines} pipelines, {} over the device's {limit} storage buffers per stage, {} warnings: \
-         written in {written:.1?}, all in {:.1?} ({}, {})",
+        "{} modules, {pipelines} pipelines, {} over the device's {limit} storage buffers per stage ({built_over} of \
+         them built), {} warnings: written in {written:.1?}, all in {:.1?} ({}, {})",
         files.len(),
         over.len(),
         warnings.len(),
