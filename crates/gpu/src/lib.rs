@@ -1,4 +1,4 @@
-//! The GPU backend: WGSL compute shaders through wgpu (Vulkan).
+//! The GPU backend: WGSL compute shaders through wgpu (Vulkan, Metal, DX12 or GL).
 //!
 //! [`GpuContext`] owns the device and caches one pipeline per (program, [`FeatureKey`]);
 //! [`SceneBuffers`] holds a scene's storage buffers; [`render`] and [`trace`] dispatch.
@@ -25,8 +25,8 @@ use strahl_core::accel::gpu_bvh::MAX_PRIMS;
 use strahl_core::layout::{FlatScene, FrameParams};
 use wgpu::util::DeviceExt;
 
-/// How to get a Vulkan driver when none is found.
-pub const NO_ADAPTER_HINT: &str = "no Vulkan adapter found. Install a Vulkan driver; on Debian/Ubuntu the \
+/// How to get a driver when no adapter is found.
+pub const NO_ADAPTER_HINT: &str = "no GPU adapter found. Install a Vulkan driver; on Debian/Ubuntu the \
      software one is `apt-get install mesa-vulkan-drivers` (lavapipe), or use --backend cpu";
 
 #[derive(Debug, thiserror::Error)]
@@ -35,6 +35,8 @@ pub enum GpuError {
     NoAdapter,
     #[error("cannot open the GPU device: {0}")]
     Device(String),
+    #[error("{var}={value}: {why}")]
+    Environment { var: &'static str, value: String, why: String },
     #[error(transparent)]
     Shader(#[from] shaders::ShaderError),
     #[error("{what} needs {need} bytes, more than this adapter allows in one buffer ({limit} bytes, its {limit_name})")]
@@ -102,6 +104,16 @@ const MIN_STORAGE_BUFFERS: u32 = SCENE_BINDINGS + 3;
 /// bindings has [`Split::extra_bindings`] more.
 pub const SCENE_BINDINGS: u32 = 16;
 
+/// What a device with `limits` lacks for strahl, in words; None where it has all it needs.
+pub fn unmet_requirement(limits: &wgpu::Limits) -> Option<String> {
+    (limits.max_storage_buffers_per_shader_stage < MIN_STORAGE_BUFFERS).then(|| {
+        format!(
+            "strahl needs {MIN_STORAGE_BUFFERS} storage buffers per shader stage, this device offers {}",
+            limits.max_storage_buffers_per_shader_stage
+        )
+    })
+}
+
 /// How path tracing runs on a device: one kernel per sample pass that follows each path to its
 /// end (`megakernel.wgsl`), or separate kernels over queues of paths (`wavefront.wgsl`, see
 /// [`wavefront`]). Both compute the same image.
@@ -168,7 +180,7 @@ fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
 }
 
 impl GpuContext {
-    /// Opens the first Vulkan adapter (a discrete GPU preferred).
+    /// Opens the adapter [`instance::request_adapter`] takes (a discrete GPU preferred).
     pub fn new() -> Result<Self, GpuError> {
         Self::from_adapter(&instance::request_adapter()?)
     }
@@ -200,11 +212,8 @@ impl GpuContext {
         adapter_info: wgpu::AdapterInfo,
     ) -> Result<Self, GpuError> {
         let limits = device.limits();
-        if limits.max_storage_buffers_per_shader_stage < MIN_STORAGE_BUFFERS {
-            return Err(GpuError::Device(format!(
-                "strahl needs {MIN_STORAGE_BUFFERS} storage buffers per shader stage, this device offers {}",
-                limits.max_storage_buffers_per_shader_stage
-            )));
+        if let Some(lack) = unmet_requirement(&limits) {
+            return Err(GpuError::Device(lack));
         }
         let faults = Arc::new(Faults::default());
         let f = faults.clone();
