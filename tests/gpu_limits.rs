@@ -33,21 +33,25 @@ fn arrays_over_what_strahl_splits_or_the_bindings_allow_are_refused_by_name() {
     for part in ["triangles", "5 storage bindings of 1048560 bytes", "max_storage_buffer_binding_size", "the 4"] {
         assert!(msg.contains(part), "{part} missing from: {msg}");
     }
-    // At 2 MiB the arrays fit in 3 + 2 + 3 parts, five bindings more than the scene's 16:
-    // with the trace program's 3, more than 23 storage buffers per stage.
+    // At 2 MiB the arrays fit in 3 + 2 + 3 parts, five bindings more than the 8 storage buffers
+    // per stage a pipeline binds for a scene whose arrays fit: more than 12.
     ctx.limits.max_storage_buffer_binding_size = 2 << 20;
-    ctx.limits.max_storage_buffers_per_shader_stage = 23;
+    ctx.limits.max_storage_buffers_per_shader_stage = 12;
     let e = SceneBuffers::upload(&ctx, &prep.gpu).err().expect("an upload over the bindings must fail");
-    assert!(matches!(e, GpuError::TooManyBindings { need: 24, extra: 5, limit: 23 }), "{e}");
+    assert!(matches!(e, GpuError::TooManyBindings { need: 13, extra: 5, limit: 12 }), "{e}");
     assert!(e.to_string().contains("max_storage_buffers_per_shader_stage"), "{e}");
-    // An array that is never split over one binding: the lecture's three spheres (32 bytes
-    // each; too few for a BVH).
+    // The buffer that is never split over one binding: the packed objects of the lecture's
+    // three spheres (a header, 96 bytes of spheres, the materials; too few for a BVH).
     ctx.limits.max_storage_buffer_binding_size = 64;
-    let e = SceneBuffers::upload(&ctx, &scene("lecture.toml").gpu).err().expect("64-byte bindings hold no scene");
-    let GpuError::TooLarge { what, need: 96, limit: 64, limit_name: "max_storage_buffer_binding_size" } = &e else {
+    let lecture = scene("lecture.toml");
+    let objects = strahl_gpu::objects::objects_bytes(&lecture.gpu);
+    assert!(objects > 64 + 96, "{objects}");
+    let e = SceneBuffers::upload(&ctx, &lecture.gpu).err().expect("64-byte bindings hold no scene");
+    let GpuError::TooLarge { what, need, limit: 64, limit_name: "max_storage_buffer_binding_size" } = &e else {
         panic!("wrong error: {e}")
     };
-    assert_eq!(what, "spheres", "{e}");
+    assert_eq!(*need, objects, "{e}");
+    assert!(what.starts_with("the scene's objects (spheres,"), "{e}");
     // Where max_buffer_size is the smaller limit, the error names it.
     ctx.limits.max_buffer_size = 32;
     let e = SceneBuffers::upload(&ctx, &scene("lecture.toml").gpu).err().expect("32-byte buffers hold no scene");

@@ -6,22 +6,22 @@
 #import strahl::types::{QueryRay, QueryHit, QUERY_FOUND, QUERY_ENTER, KIND_PLANE, KIND_TRIANGLE, INDEX_BITS, F32_MAX, LINK_SHAPES, LINK_EMPTY}
 #import strahl::spawn::spawn_origin
 #ifdef BVH
-#import strahl::bindings::shape_refs
+#import strahl::bindings::load_shape_ref
 #ifdef TRIANGLES
 #import strahl::traverse::fetch_leaf_triangle
 #endif
 #endif
 #ifdef SPHERES
-#import strahl::bindings::spheres
+#import strahl::bindings::{load_sphere, sphere_count}
 #endif
 #ifdef CYLINDERS
-#import strahl::bindings::cylinders
+#import strahl::bindings::{load_cylinder, cylinder_count}
 #endif
 #ifdef TRIANGLES
 #import strahl::bindings::triangles
 #endif
 #ifdef PLANES
-#import strahl::bindings::planes
+#import strahl::bindings::{load_plane, plane_count}
 #endif
 #import strahl::roots::Roots
 #import strahl::traverse::{nearest_hit, prim_normal, prim_tag, prim_roots, prim_ref}
@@ -103,7 +103,7 @@ fn emit_roots(r: u32, q: QueryRay, write: bool, base: u32, count: ptr<function, 
 fn visit_all(q: QueryRay, write: bool, base: u32) -> u32 {
     var count = 0u;
 #ifdef PLANES
-    for (var i = 0u; i < arrayLength(&planes); i += 1u) {
+    for (var i = 0u; i < plane_count(); i += 1u) {
         emit_roots(prim_ref(KIND_PLANE, i), q, write, base, &count);
     }
 #endif
@@ -119,7 +119,7 @@ fn visit_all(q: QueryRay, write: bool, base: u32) -> u32 {
             let end = leaf_end(cur);
             if (cur & LINK_SHAPES) != 0u {
                 for (var k = leaf_first(cur); k < end; k += 1u) {
-                    emit_roots(shape_refs[k], q, write, base, &count);
+                    emit_roots(load_shape_ref(k), q, write, base, &count);
                 }
             } else {
 #ifdef TRIANGLES
@@ -133,12 +133,12 @@ fn visit_all(q: QueryRay, write: bool, base: u32) -> u32 {
     }
 #else
 #ifdef SPHERES
-    for (var i = 0u; i < arrayLength(&spheres); i += 1u) {
+    for (var i = 0u; i < sphere_count(); i += 1u) {
         emit_roots(prim_ref(0u, i), q, write, base, &count);
     }
 #endif
 #ifdef CYLINDERS
-    for (var i = 0u; i < arrayLength(&cylinders); i += 1u) {
+    for (var i = 0u; i < cylinder_count(); i += 1u) {
         emit_roots(prim_ref(1u, i), q, write, base, &count);
     }
 #endif

@@ -4,6 +4,7 @@
 //! [`SceneBuffers`] holds a scene's storage buffers; [`render`] and [`trace`] dispatch.
 
 pub mod instance;
+pub mod objects;
 pub mod select;
 pub mod shaders;
 pub mod shared;
@@ -95,23 +96,33 @@ impl Faults {
     }
 }
 
-/// Storage buffers a stage binds: the scene's 16 and the trace program's 3 (the wavefront path
-/// tracer needs [`wavefront::BINDINGS`] more than the scene's; see
-/// [`GpuContext::has_wavefront`]).
-const MIN_STORAGE_BUFFERS: u32 = SCENE_BINDINGS + 3;
-/// Bindings of group 0 (`shaders/modules/bindings.wgsl`): the frame and the scene's buffers, those of
-/// textures and the environment included; a scene whose arrays are split across several
-/// bindings has [`Split::extra_bindings`] more.
-pub const SCENE_BINDINGS: u32 = 16;
+/// The most storage buffers per shader stage a pipeline binds for a scene whose arrays fit one
+/// binding each: WebGPU's guaranteed `maxStorageBuffersPerShaderStage`, so that strahl runs
+/// on any device wgpu offers. The render programs bind the scene's [`SCENE_BINDINGS`] and
+/// their output; the trace program the frame, the objects and the three arrays of triangles
+/// and the BVH, and its rays, hits and offsets (`shaders::tests` checks every variant). The
+/// wavefront path tracer needs [`wavefront::BINDINGS`] beside the scene's, and runs only where
+/// a device offers them ([`GpuContext::has_wavefront`]).
+pub const MIN_STORAGE_BUFFERS: u32 = 8;
+/// Bindings of group 0 (`shaders/modules/bindings.wgsl`): the frame, the packed objects
+/// ([`objects`]), the triangles, BVH nodes and leaf triangles, the texels and the triangle
+/// attributes; a scene whose arrays are split across several bindings has
+/// [`Split::extra_bindings`] more. A variant declares those its features use.
+pub const SCENE_BINDINGS: u32 = 7;
 
-/// What a device with `limits` lacks for strahl, in words; None where it has all it needs.
+/// What a device with `limits` lacks for strahl, if anything: the storage buffers per stage
+/// of [`MIN_STORAGE_BUFFERS`] and the two bind groups (scene, and a program's own).
 pub fn unmet_requirement(limits: &wgpu::Limits) -> Option<String> {
-    (limits.max_storage_buffers_per_shader_stage < MIN_STORAGE_BUFFERS).then(|| {
-        format!(
+    if limits.max_storage_buffers_per_shader_stage < MIN_STORAGE_BUFFERS {
+        return Some(format!(
             "strahl needs {MIN_STORAGE_BUFFERS} storage buffers per shader stage, this device offers {}",
             limits.max_storage_buffers_per_shader_stage
-        )
-    })
+        ));
+    }
+    if limits.max_bind_groups < 2 {
+        return Some(format!("strahl needs 2 bind groups, this device offers {}", limits.max_bind_groups));
+    }
+    None
 }
 
 /// How path tracing runs on a device: one kernel per sample pass that follows each path to its
@@ -133,7 +144,10 @@ type PipelineKey = (Program, FeatureKey, &'static str);
 type PipelineSlot = Arc<Mutex<Option<Arc<CachedPipeline>>>>;
 /// A variant's shader module, shared by the pipelines of its entry points (so composed and
 /// validated once), filled and locked like a [`PipelineSlot`].
-type ShaderSlot = Arc<Mutex<Option<wgpu::ShaderModule>>>;
+type ShaderSlot = Arc<Mutex<Option<(wgpu::ShaderModule, SceneBindings)>>>;
+/// The group-0 bindings a variant declares, in increasing order: its pipelines' scene layout,
+/// and the scene buffers its bind group holds.
+pub type SceneBindings = Arc<[u32]>;
 
 /// A compiled pipeline and what compiling it cost.
 pub struct CachedPipeline {
@@ -143,6 +157,8 @@ pub struct CachedPipeline {
     /// Composition (naga_oil) and shader module creation, where this was the variant's first
     /// entry point, plus pipeline creation (driver compile).
     pub compile_time: Duration,
+    /// The scene bindings (group 0) the pipeline's layout has.
+    pub scene_bindings: SceneBindings,
 }
 
 pub struct GpuContext {
@@ -154,8 +170,8 @@ pub struct GpuContext {
     pub timestamps: bool,
     /// [`FeatureKey::DEVICE`] flags this device supports, added to every pipeline's key.
     pub device_flags: FeatureKey,
-    /// The layouts of group 0, by the scene's split (one for all scenes that split nothing).
-    scene_layouts: Mutex<HashMap<Split, wgpu::BindGroupLayout>>,
+    /// The layouts of group 0, by the bindings a variant declares.
+    scene_layouts: Mutex<HashMap<SceneBindings, wgpu::BindGroupLayout>>,
     render_layout: wgpu::BindGroupLayout,
     trace_layout: wgpu::BindGroupLayout,
     wavefront_layout: wgpu::BindGroupLayout,
@@ -212,8 +228,8 @@ impl GpuContext {
         adapter_info: wgpu::AdapterInfo,
     ) -> Result<Self, GpuError> {
         let limits = device.limits();
-        if let Some(lack) = unmet_requirement(&limits) {
-            return Err(GpuError::Device(lack));
+        if let Some(lacking) = unmet_requirement(&limits) {
+            return Err(GpuError::Device(lacking));
         }
         let faults = Arc::new(Faults::default());
         let f = faults.clone();
@@ -336,7 +352,11 @@ impl GpuContext {
     /// The shader module of the variant `key` of `program`, composed on first use. wgpu
     /// validates the composed module when it makes the shader module (the one validation on
     /// this path; the tests validate every variant), so once per variant and device.
-    fn shader_module(&self, program: Program, key: FeatureKey) -> Result<wgpu::ShaderModule, GpuError> {
+    fn shader_module(
+        &self,
+        program: Program,
+        key: FeatureKey,
+    ) -> Result<(wgpu::ShaderModule, SceneBindings), GpuError> {
         let slot =
             self.shader_modules.lock().expect("shader module cache lock").entry((program, key)).or_default().clone();
         let mut slot = slot.lock().unwrap_or_else(|e| e.into_inner());
@@ -344,6 +364,7 @@ impl GpuContext {
             return Ok(m.clone());
         }
         let module = shaders::compose(program, key)?;
+        let bindings = shaders::group_bindings(&module, 0).into();
         let label = format!("{program:?}");
         let shader = self.scoped(&format!("the {program:?} shader for {}", key.label()), || {
             self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -351,21 +372,21 @@ impl GpuContext {
                 source: wgpu::ShaderSource::Naga(std::borrow::Cow::Owned(module)),
             })
         })?;
-        *slot = Some(shader.clone());
-        Ok(shader)
+        *slot = Some((shader.clone(), bindings));
+        Ok(slot.clone().expect("just filled"))
     }
 
     /// Compiles the pipeline of `entry` for the variant `key`.
     fn compile(&self, program: Program, key: FeatureKey, entry: &'static str) -> Result<CachedPipeline, GpuError> {
         let start = Instant::now();
-        let shader = self.shader_module(program, key)?;
+        let (shader, scene_bindings) = self.shader_module(program, key)?;
         let what = format!("the {program:?} shader {entry} for {}", key.label());
         let io_layout = match program {
             Program::Whitted | Program::Path | Program::View => &self.render_layout,
             Program::Trace => &self.trace_layout,
             Program::Wavefront => &self.wavefront_layout,
         };
-        let scene_layout = self.scene_layout(Split::of_key(key));
+        let scene_layout = self.scene_layout(&scene_bindings);
         let pipeline = self.scoped(&format!("the pipeline of {what}"), || {
             let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some(entry),
@@ -381,19 +402,15 @@ impl GpuContext {
                 cache: None,
             })
         })?;
-        Ok(CachedPipeline { pipeline, key, compile_time: start.elapsed() })
+        Ok(CachedPipeline { pipeline, key, compile_time: start.elapsed(), scene_bindings })
     }
 
-    /// The layout of group 0 for scenes split as `split`: the frame and the scene's buffers
-    /// ([`SCENE_BINDINGS`]), and the bindings of the parts after the first of split arrays.
-    fn scene_layout(&self, split: Split) -> wgpu::BindGroupLayout {
+    /// The layout of group 0 with `bindings`, read-only storage buffers all (binding 0, the
+    /// frame, too: see shaders/modules/bindings.wgsl).
+    fn scene_layout(&self, bindings: &SceneBindings) -> wgpu::BindGroupLayout {
         let mut layouts = self.scene_layouts.lock().expect("scene layout lock");
-        let layout = layouts.entry(split).or_insert_with(|| {
-            // Binding 0 is the frame: storage, not uniform (see shaders/modules/bindings.wgsl).
-            let mut entries: Vec<_> = (0..SCENE_BINDINGS).map(|b| storage_entry(b, true)).collect();
-            for array in SplitArray::ALL {
-                entries.extend((1..split.parts(array)).map(|p| storage_entry(split::extra_binding(array, p), true)));
-            }
+        let layout = layouts.entry(bindings.clone()).or_insert_with(|| {
+            let entries: Vec<_> = bindings.iter().map(|&b| storage_entry(b, true)).collect();
             self.device
                 .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("scene"), entries: &entries })
         });
@@ -548,7 +565,10 @@ pub struct SceneBuffers {
     /// with contain the former and equal the latter ([`SceneBuffers::runs_with`]).
     pub key: FeatureKey,
     pub frame: wgpu::Buffer,
-    pub bind_group: wgpu::BindGroup,
+    /// Every buffer of group 0 by its binding: the frame, each array (or part of one).
+    buffers: Arc<[(u32, wgpu::Buffer)]>,
+    /// Bind groups over `buffers`, one per set of bindings a variant declares.
+    bind_groups: Arc<Mutex<HashMap<SceneBindings, wgpu::BindGroup>>>,
     /// Bytes uploaded.
     pub bytes: u64,
     has_bvh: bool,
@@ -567,29 +587,34 @@ impl SceneBuffers {
         if g.nodes.is_empty() && g.bounded_count() > FeatureKey::BRUTE_FORCE_MAX {
             return Err(GpuError::TooDeep { limit: strahl_core::accel::gpu_bvh::MAX_DEPTH });
         }
+        // Sizes first: nothing is packed or allocated for a scene over the limits.
+        const OBJECTS: &str =
+            "the scene's objects (spheres, cylinders, planes, materials, lights, emitters, texture table, environment)";
+        const TEXELS: &str = "texels (every image of the scene: textures and environment map, with its distribution)";
+        ctx.check_binding_size(OBJECTS, objects::objects_bytes(g))?;
+        ctx.check_binding_size(TEXELS, objects::texels_bytes(g))?;
+        let split = Split::plan(
+            &ctx.limits,
+            [
+                std::mem::size_of_val(g.triangles.as_slice()),
+                std::mem::size_of_val(g.nodes.as_slice()),
+                std::mem::size_of_val(g.leaf_triangles.as_slice()),
+            ]
+            .map(|b| b as u64),
+        )?;
+        ctx.check_binding_size("triangle attributes", std::mem::size_of_val(g.triangle_attrs.as_slice()) as u64)?;
+        let objects = objects::pack_objects(g);
+        let texels = objects::pack_texels(g);
         // In binding order, from 1 (0 is the frame).
         let arrays = [
-            pod_array("spheres", &g.spheres),
-            pod_array("cylinders", &g.cylinders),
-            pod_array("planes", &g.planes),
+            pod_array(OBJECTS, &objects),
             split_array(SplitArray::Triangles, &g.triangles),
             split_array(SplitArray::Nodes, &g.nodes),
-            pod_array("shape references", &g.shape_refs),
-            pod_array("materials", &g.materials),
-            pod_array("lights", &g.lights),
-            pod_array("emitters", &g.emitters),
             split_array(SplitArray::LeafTriangles, &g.leaf_triangles),
-            pod_array("texture table", &g.textures),
-            pod_array("texels (every image of the scene: textures and environment map)", &g.texels),
+            pod_array(TEXELS, &texels),
             pod_array("triangle attributes", &g.triangle_attrs),
-            pod_array("environment", &g.environment),
-            pod_array("environment map distribution", &g.env_distribution),
         ];
-        let bytes_of = |array| arrays.iter().find(|a| a.split == Some(array)).map_or(0, |a| a.bytes.len() as u64);
-        let split = Split::plan(&ctx.limits, SplitArray::ALL.map(bytes_of))?;
-        for a in arrays.iter().filter(|a| a.split.is_none()) {
-            ctx.check_binding_size(a.what, a.bytes.len() as u64)?;
-        }
+        debug_assert_eq!(arrays.len() as u32 + 1, SCENE_BINDINGS);
         ctx.scoped("uploading the scene", || Self::create(ctx, g, &arrays, split))
     }
 
@@ -615,22 +640,40 @@ impl SceneBuffers {
                 buffers.push((binding, ctx.storage_bytes(a.what, part, a.element)));
             }
         }
-        let entries: Vec<_> = buffers
-            .iter()
-            .map(|(binding, b)| wgpu::BindGroupEntry { binding: *binding, resource: b.as_entire_binding() })
-            .collect();
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("scene"),
-            layout: &ctx.scene_layout(split),
-            entries: &entries,
-        });
         Self {
             key: FeatureKey::for_scene(g) | split.key(),
             frame,
-            bind_group,
             bytes: buffers[1..].iter().map(|(_, b)| b.size()).sum(),
+            buffers: buffers.into(),
+            bind_groups: Arc::default(),
             has_bvh: !g.nodes.is_empty(),
         }
+    }
+
+    /// The scene's bind group (group 0) for `pipeline`: the buffers at the bindings its variant
+    /// declares, made once per set of bindings. A variant that [`SceneBuffers::runs_with`] this
+    /// scene declares only bindings the scene has; a binding it lacks would make wgpu report a
+    /// validation error, returned by the next [`GpuContext::scoped`] or [`GpuContext::check`].
+    pub fn bind_group(&self, ctx: &GpuContext, pipeline: &CachedPipeline) -> wgpu::BindGroup {
+        let bindings = &pipeline.scene_bindings;
+        let mut groups = self.bind_groups.lock().expect("scene bind group lock");
+        let group = groups.entry(bindings.clone()).or_insert_with(|| {
+            let entries: Vec<_> = self
+                .buffers
+                .iter()
+                .filter(|(b, _)| bindings.contains(b))
+                .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                    binding: *binding,
+                    resource: buffer.as_entire_binding(),
+                })
+                .collect();
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("scene"),
+                layout: &ctx.scene_layout(bindings),
+                entries: &entries,
+            })
+        });
+        group.clone()
     }
 
     /// How the scene's large arrays are split across bindings.

@@ -15,9 +15,11 @@ mod compose;
 mod feature_key;
 #[cfg(test)]
 mod tests;
+mod wgsl;
 
 pub use compose::compose;
 pub use feature_key::FeatureKey;
+pub use wgsl::{exact_f32_literals, wgsl, write_wgsl};
 
 /// The shared modules, in import order (each may import only those before it).
 pub const MODULES: &[(&str, &str)] = &[
@@ -83,6 +85,8 @@ pub enum ShaderError {
     Compose { file: String, message: String },
     #[error("validating the {program:?} shader for {key}: {message}")]
     Validate { program: Program, key: String, message: String },
+    #[error("writing the {program:?} shader for {key} as WGSL: {message}")]
+    Write { program: Program, key: String, message: String },
 }
 
 /// Validates a composed module with every check naga has; returns its module info.
@@ -101,4 +105,18 @@ pub fn validate(
 pub fn to_wgsl(module: &naga::Module, info: &naga::valid::ModuleInfo) -> String {
     naga::back::wgsl::write_string(module, info, naga::back::wgsl::WriterFlags::empty())
         .unwrap_or_else(|e| format!("// cannot print this module as WGSL: {e}"))
+}
+
+/// The bindings of bind group `group` that `module` declares, in increasing order.
+pub fn group_bindings(module: &naga::Module, group: u32) -> Vec<u32> {
+    let mut bindings: Vec<u32> = module
+        .global_variables
+        .iter()
+        .filter_map(|(_, v)| v.binding.as_ref())
+        .filter(|b| b.group == group)
+        .map(|b| b.binding)
+        .collect();
+    bindings.sort_unstable();
+    bindings.dedup();
+    bindings
 }

@@ -31,7 +31,7 @@ impl Shared {
 }
 
 /// `v` (finite) as a WGSL hexadecimal float literal with an `f` suffix.
-fn hex_float(v: f32) -> String {
+pub(crate) fn hex_float(v: f32) -> String {
     assert!(v.is_finite(), "shared floats are finite");
     let bits = v.to_bits();
     let sign = if bits >> 31 != 0 { "-" } else { "" };
@@ -54,7 +54,7 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
     use strahl_core::render::{bsdf, microfacet, path, pbr, sampler, shade, spawn};
     use strahl_core::scene::MaterialKind;
     use strahl_core::scene::texture::Wrap;
-    vec![
+    let mut values = vec![
         // Primitive references (primitives::PrimRef) and the parts of a surface.
         ("KIND_SPHERE", U32(PrimKind::Sphere as u32)),
         ("KIND_CYLINDER", U32(PrimKind::Cylinder as u32)),
@@ -135,7 +135,10 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("WF_SHADOWS_IN", U32(super::wavefront::counter::SHADOWS_IN)),
         ("WF_ARGS_PATHS", U32(super::wavefront::counter::ARGS_PATHS)),
         ("WF_ARGS_SHADOWS", U32(super::wavefront::counter::ARGS_SHADOWS)),
-    ]
+    ];
+    // Where the arrays of the packed objects buffer start, and their counts (objects::ObjectsHeader).
+    values.extend(super::objects::ObjectsHeader::slots().map(|(name, slot)| (name, U32(slot))));
+    values
 }
 
 /// `source` with every `#{NAME}` of a shared value replaced by its literal.

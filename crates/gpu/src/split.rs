@@ -35,10 +35,6 @@ const SHIFT: u32 = FeatureKey::FLAG_COUNT;
 const LOG2_SHIFT: u32 = SHIFT + SplitArray::ALL.len() as u32 * PART_BITS;
 /// The bits of a [`FeatureKey`] that hold its split.
 pub const MASK: u32 = ((1 << (SplitArray::ALL.len() as u32 * PART_BITS + LOG2_BITS)) - 1) << SHIFT;
-/// Storage buffers of the program with the most besides the scene's that every scene must
-/// run with: the trace program's rays, hits and offsets (the wavefront tracer's
-/// [`super::wavefront::BINDINGS`] are checked where it is chosen).
-pub const PROGRAM_BINDINGS: u32 = 3;
 
 /// An array that may be split, in the order of the key's fields.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -146,7 +142,7 @@ impl Split {
             }
             split.parts[array.index()] = parts as u32;
         }
-        let need = SCENE_BINDINGS + split.extra_bindings() + PROGRAM_BINDINGS;
+        let need = crate::MIN_STORAGE_BUFFERS + split.extra_bindings();
         if need > limits.max_storage_buffers_per_shader_stage {
             return Err(GpuError::TooManyBindings {
                 need,
@@ -314,12 +310,12 @@ mod tests {
         {
             assert!(msg.contains(part), "{part} missing from: {msg}");
         }
-        // 5M triangles need 3 more bindings: 16 + 3 + 3 exceed 21.
-        let e = Split::plan(&lavapipe(21), torus_bytes(5_000_000)).unwrap_err();
+        // 5M triangles need 3 more bindings: 8 + 3 exceed 10.
+        let e = Split::plan(&lavapipe(10), torus_bytes(5_000_000)).unwrap_err();
         let msg = e.to_string();
-        assert!(matches!(e, GpuError::TooManyBindings { need: 22, extra: 3, limit: 21 }), "{e}");
+        assert!(matches!(e, GpuError::TooManyBindings { need: 11, extra: 3, limit: 10 }), "{e}");
         assert!(
-            msg.contains("22") && msg.contains("21") && msg.contains("max_storage_buffers_per_shader_stage"),
+            msg.contains("11") && msg.contains("10") && msg.contains("max_storage_buffers_per_shader_stage"),
             "{msg}"
         );
         // A binding smaller than one element holds no part.

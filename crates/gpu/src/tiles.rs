@@ -120,7 +120,7 @@ pub fn render_tiles(
                 ctx,
                 &mut enc,
                 scene,
-                &pipe.pipeline,
+                &pipe,
                 &out_group,
                 &pass_frame,
                 &band,
@@ -245,7 +245,7 @@ impl PathAccumulator {
                         &self.ctx,
                         &mut enc,
                         scene,
-                        &pipeline.pipeline,
+                        pipeline,
                         out_group,
                         &frame,
                         &band,
@@ -361,7 +361,7 @@ pub fn record_pass(
     ctx: &GpuContext,
     enc: &mut wgpu::CommandEncoder,
     scene: &SceneBuffers,
-    pipeline: &wgpu::ComputePipeline,
+    pipeline: &CachedPipeline,
     output: &wgpu::BindGroup,
     frame: &FrameParams,
     band: &Band,
@@ -369,6 +369,7 @@ pub fn record_pass(
     accumulate: bool,
     timer: Option<(&Timer, u32)>,
 ) -> u32 {
+    let scene_group = scene.bind_group(ctx, pipeline);
     let mut n = 0u32;
     for i in tiles.start..tiles.end.min(band.tile_count()) {
         let (origin, size) = band.tile_rect(i);
@@ -386,8 +387,8 @@ pub fn record_pass(
             label: Some("render tile"),
             timestamp_writes: timer.map(|(t, first)| t.writes(first + n)),
         });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &scene.bind_group, &[]);
+        pass.set_pipeline(&pipeline.pipeline);
+        pass.set_bind_group(0, &scene_group, &[]);
         pass.set_bind_group(1, output, &[]);
         pass.dispatch_workgroups(size[0].div_ceil(WORKGROUP), size[1].div_ceil(WORKGROUP), 1);
         drop(pass);

@@ -1,7 +1,7 @@
 //! Ray queries on the GPU (`strahl trace --backend gpu`), in f32, in batches that fit the
 //! adapter's buffer limits and dispatch size.
 
-use super::{GpuContext, GpuError, Program, SceneBuffers};
+use super::{CachedPipeline, GpuContext, GpuError, Program, SceneBuffers};
 use strahl_core::geometry::Part;
 use strahl_core::layout::{FrameParams, GpuQueryHit, GpuQueryRay, QUERY_ENTER, QUERY_FOUND};
 use strahl_core::math::V3;
@@ -61,7 +61,7 @@ pub fn trace(
             // Pass 1: count, then exclusive offsets on the host.
             let counts_buf = rw_buffer(ctx, "hit counts", n * 4)?;
             let dummy = rw_buffer(ctx, "no hits", HIT_BYTES)?;
-            dispatch(ctx, &first.pipeline, scene, &ray_buf, &dummy, &counts_buf, n)?;
+            dispatch(ctx, &first, scene, &ray_buf, &dummy, &counts_buf, n)?;
             let counts: Vec<u32> = ctx.read_pod(&counts_buf, n as usize)?;
             let total: u64 = counts.iter().map(|&c| c as u64).sum();
             if total * HIT_BYTES > limit {
@@ -81,7 +81,7 @@ pub fn trace(
             }
             ctx.queue.write_buffer(&counts_buf, 0, bytemuck::cast_slice(&offsets));
             let hits_buf = rw_buffer(ctx, "hits", (total * HIT_BYTES).max(HIT_BYTES))?;
-            dispatch(ctx, &write_all.pipeline, scene, &ray_buf, &hits_buf, &counts_buf, n)?;
+            dispatch(ctx, write_all, scene, &ray_buf, &hits_buf, &counts_buf, n)?;
             let hits: Vec<GpuQueryHit> = ctx.read_pod(&hits_buf, total as usize)?;
             for (i, &c) in counts.iter().enumerate() {
                 let o = offsets[i] as usize;
@@ -90,7 +90,7 @@ pub fn trace(
         } else {
             let hits_buf = rw_buffer(ctx, "hits", n * HIT_BYTES)?;
             let dummy = rw_buffer(ctx, "no offsets", 4)?;
-            dispatch(ctx, &first.pipeline, scene, &ray_buf, &hits_buf, &dummy, n)?;
+            dispatch(ctx, &first, scene, &ray_buf, &hits_buf, &dummy, n)?;
             let hits: Vec<GpuQueryHit> = ctx.read_pod(&hits_buf, n as usize)?;
             out.extend(hits.iter().map(|h| if h.flags & QUERY_FOUND != 0 { vec![from_gpu(h)] } else { Vec::new() }));
         }
@@ -112,7 +112,7 @@ fn rw_buffer(ctx: &GpuContext, what: &str, size: u64) -> Result<wgpu::Buffer, Gp
 
 fn dispatch(
     ctx: &GpuContext,
-    pipeline: &wgpu::ComputePipeline,
+    pipeline: &CachedPipeline,
     scene: &SceneBuffers,
     rays: &wgpu::Buffer,
     hits: &wgpu::Buffer,
@@ -131,8 +131,8 @@ fn dispatch(
     let mut enc = ctx.device.create_command_encoder(&Default::default());
     {
         let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &scene.bind_group, &[]);
+        pass.set_pipeline(&pipeline.pipeline);
+        pass.set_bind_group(0, &scene.bind_group(ctx, pipeline), &[]);
         pass.set_bind_group(1, &io, &[]);
         pass.dispatch_workgroups(n.div_ceil(WORKGROUP) as u32, 1, 1);
     }
@@ -167,7 +167,7 @@ pub fn trace_spawn(
         let ray_buf = ctx.storage_buffer("spawn rays", &rays)?;
         let hits_buf = rw_buffer(ctx, "spawn hits", n * HIT_BYTES)?;
         let dummy = rw_buffer(ctx, "no offsets", 4)?;
-        dispatch(ctx, &pipe.pipeline, scene, &ray_buf, &hits_buf, &dummy, batch.len() as u64)?;
+        dispatch(ctx, &pipe, scene, &ray_buf, &hits_buf, &dummy, batch.len() as u64)?;
         let hits: Vec<GpuQueryHit> = ctx.read_pod(&hits_buf, n as usize)?;
         let get = |h: &GpuQueryHit| (h.flags & QUERY_FOUND != 0).then(|| from_gpu(h));
         out.extend(hits.chunks(2).map(|p| (get(&p[0]), get(&p[1]))));

@@ -225,7 +225,7 @@ impl Wavefront {
                 timestamp_writes: timer.map(|(t, first)| t.writes(first + kernels.len() as u32)),
             });
             pass.set_pipeline(&self.pipelines[k].pipeline);
-            pass.set_bind_group(0, &self.scene.bind_group, &[]);
+            pass.set_bind_group(0, &self.scene.bind_group(ctx, &self.pipelines[k]), &[]);
             pass.set_bind_group(1, &self.groups[group], &[]);
             match size {
                 Dispatch::Direct(x) => pass.dispatch_workgroups(x, 1, 1),

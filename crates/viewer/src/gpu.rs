@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use strahl_core::image::Image;
 use strahl_core::layout::{self as g, FrameParams};
 use strahl_gpu::tiles::{Band, record_pass};
-use strahl_gpu::{GpuContext, GpuError, Program, SceneBuffers};
+use strahl_gpu::{CachedPipeline, GpuContext, GpuError, Program, SceneBuffers};
 
 /// Tile side of the viewer's dispatches, as for `strahl render`. Smaller tiles make the UI
 /// only somewhat smoother: a dispatch's fixed cost on lavapipe makes whole passes slower.
@@ -349,7 +349,7 @@ impl ViewRenderer {
     pub fn step(
         &mut self,
         scene: &SceneBuffers,
-        pipeline: &wgpu::ComputePipeline,
+        pipeline: &CachedPipeline,
         frame: &FrameParams,
         budget: u32,
         max_samples: u32,

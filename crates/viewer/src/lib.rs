@@ -432,7 +432,7 @@ impl Viewer {
                     self.pacer.budget.round().max(1.0) as u32
                 };
                 let params = self.present_params();
-                let n = self.gpu.step(&self.buffers, &pipe.pipeline, &frame, budget, self.max_samples, params);
+                let n = self.gpu.step(&self.buffers, &pipe, &frame, budget, self.max_samples, params);
                 self.pacer.worked_last_frame = n > 0;
             } else if self.present_dirty {
                 self.gpu.represent(self.present_params());

@@ -1,10 +1,20 @@
 // The scene's storage buffers (group 0), uploaded once per scene, and the per-dispatch frame.
-// No CPU twin: the host binds them in crates/gpu/src/lib.rs (SceneBuffers).
-// A binding is declared only in variants whose defs use it; empty arrays are bound to a
-// one-element dummy buffer.
+// No CPU twin: the host packs and binds them in crates/gpu/src/objects.rs and lib.rs
+// (SceneBuffers).
+//
+// Seven bindings at most, so that with a program's own (the trace program's three, the render
+// programs' one) no pipeline binds more than the 8 storage buffers per stage that WebGPU
+// guarantees: the frame; `objects`, one buffer of 16-byte words holding every small array
+// (spheres, cylinders, planes, shape references, materials, lights, emitters, the texture
+// table, the environment) behind a header that says where each starts (objects.rs,
+// ObjectsHeader), read through the load_* functions below; the three arrays that grow with the
+// triangle count (scene-order triangles, BVH nodes, leaf-order triangles), each in its own
+// typed binding so that it can be split; the texels, with the environment map's distribution
+// after them; the triangle attributes. A binding is declared only in variants whose defs use
+// it; empty arrays are bound to a one-element dummy buffer.
 //
 // An array larger than one binding (triangles, nodes, leaf triangles; crates/gpu/src/split.rs)
-// is bound in parts: part 0 at its usual binding, parts 1, 2, 3 at 16 + 3 * array + part - 1.
+// is bound in parts: part 0 at its usual binding, parts 1, 2, 3 at 7 + 3 * array + part - 1.
 // TRIANGLE_PARTS, NODE_PARTS and LEAF_TRIANGLE_PARTS (1: whole) say how many there are, and
 // strahl::traverse reads an element from its part.
 //
@@ -15,9 +25,6 @@
 #define_import_path strahl::bindings
 
 #import strahl::types::{Frame, Material, Light, Emitter}
-#ifdef BVH
-#import strahl::types::Node
-#endif
 #ifdef SPHERES
 #import strahl::types::Sphere
 #endif
@@ -27,92 +34,244 @@
 #ifdef PLANES
 #import strahl::types::Plane
 #endif
-#ifdef TRIANGLES
-#import strahl::types::{Triangle, LeafTriangle}
-#endif
 #ifdef TEXELS
 #import strahl::types::TextureInfo
-#endif
-#ifdef TEXTURES
-#import strahl::types::TriangleAttrs
 #endif
 #ifdef ENVIRONMENT
 #import strahl::types::Environment
 #endif
-
-@group(0) @binding(0) var<storage, read> frame: Frame;
-#ifdef SPHERES
-@group(0) @binding(1) var<storage, read> spheres: array<Sphere>;
-#endif
-#ifdef CYLINDERS
-@group(0) @binding(2) var<storage, read> cylinders: array<Cylinder>;
-#endif
-#ifdef PLANES
-@group(0) @binding(3) var<storage, read> planes: array<Plane>;
+#ifdef BVH
+#import strahl::types::Node
 #endif
 #ifdef TRIANGLES
-@group(0) @binding(4) var<storage, read> triangles: array<Triangle>;
+#import strahl::types::{Triangle, LeafTriangle}
+#endif
+#ifdef TEXTURES
+#import strahl::types::TriangleAttrs
+#endif
+
+@group(0) @binding(0) var<storage, read> frame: Frame;
+@group(0) @binding(1) var<storage, read> objects: array<vec4<u32>>;
+#ifdef TRIANGLES
+@group(0) @binding(2) var<storage, read> triangles: array<Triangle>;
 #if TRIANGLE_PARTS > 1
-@group(0) @binding(16) var<storage, read> triangles_1: array<Triangle>;
+@group(0) @binding(7) var<storage, read> triangles_1: array<Triangle>;
 #endif
 #if TRIANGLE_PARTS > 2
-@group(0) @binding(17) var<storage, read> triangles_2: array<Triangle>;
+@group(0) @binding(8) var<storage, read> triangles_2: array<Triangle>;
 #endif
 #if TRIANGLE_PARTS > 3
-@group(0) @binding(18) var<storage, read> triangles_3: array<Triangle>;
+@group(0) @binding(9) var<storage, read> triangles_3: array<Triangle>;
 #endif
 #endif
 #ifdef BVH
 // With LOAD64 the nodes and leaf triangles are read as 64-bit words (strahl::traverse::fetch_node):
-// a node as two 32-byte reads, a leaf triangle as three 16-byte reads.
+// a node as two 32-byte reads, a leaf triangle as three 16-byte reads. The element types are
+// written out, not through an alias: naga_oil declares a binding of an alias type once per
+// module that imports it.
 #ifdef LOAD64
-alias NodeElement = vec4<u64>;
+@group(0) @binding(3) var<storage, read> nodes: array<vec4<u64>>;
 #else
-alias NodeElement = Node;
+@group(0) @binding(3) var<storage, read> nodes: array<Node>;
 #endif
-@group(0) @binding(5) var<storage, read> nodes: array<NodeElement>;
 #if NODE_PARTS > 1
-@group(0) @binding(19) var<storage, read> nodes_1: array<NodeElement>;
+#ifdef LOAD64
+@group(0) @binding(10) var<storage, read> nodes_1: array<vec4<u64>>;
+#else
+@group(0) @binding(10) var<storage, read> nodes_1: array<Node>;
+#endif
 #endif
 #if NODE_PARTS > 2
-@group(0) @binding(20) var<storage, read> nodes_2: array<NodeElement>;
+#ifdef LOAD64
+@group(0) @binding(11) var<storage, read> nodes_2: array<vec4<u64>>;
+#else
+@group(0) @binding(11) var<storage, read> nodes_2: array<Node>;
+#endif
 #endif
 #if NODE_PARTS > 3
-@group(0) @binding(21) var<storage, read> nodes_3: array<NodeElement>;
+#ifdef LOAD64
+@group(0) @binding(12) var<storage, read> nodes_3: array<vec4<u64>>;
+#else
+@group(0) @binding(12) var<storage, read> nodes_3: array<Node>;
 #endif
-@group(0) @binding(6) var<storage, read> shape_refs: array<u32>;
+#endif
 #ifdef TRIANGLES
 #ifdef LOAD64
-alias LeafElement = vec2<u64>;
+@group(0) @binding(4) var<storage, read> leaf_triangles: array<vec2<u64>>;
 #else
-alias LeafElement = LeafTriangle;
+@group(0) @binding(4) var<storage, read> leaf_triangles: array<LeafTriangle>;
 #endif
-@group(0) @binding(10) var<storage, read> leaf_triangles: array<LeafElement>;
 #if LEAF_TRIANGLE_PARTS > 1
-@group(0) @binding(22) var<storage, read> leaf_triangles_1: array<LeafElement>;
+#ifdef LOAD64
+@group(0) @binding(13) var<storage, read> leaf_triangles_1: array<vec2<u64>>;
+#else
+@group(0) @binding(13) var<storage, read> leaf_triangles_1: array<LeafTriangle>;
+#endif
 #endif
 #if LEAF_TRIANGLE_PARTS > 2
-@group(0) @binding(23) var<storage, read> leaf_triangles_2: array<LeafElement>;
+#ifdef LOAD64
+@group(0) @binding(14) var<storage, read> leaf_triangles_2: array<vec2<u64>>;
+#else
+@group(0) @binding(14) var<storage, read> leaf_triangles_2: array<LeafTriangle>;
+#endif
 #endif
 #if LEAF_TRIANGLE_PARTS > 3
-@group(0) @binding(24) var<storage, read> leaf_triangles_3: array<LeafElement>;
+#ifdef LOAD64
+@group(0) @binding(15) var<storage, read> leaf_triangles_3: array<vec2<u64>>;
+#else
+@group(0) @binding(15) var<storage, read> leaf_triangles_3: array<LeafTriangle>;
 #endif
 #endif
 #endif
-@group(0) @binding(7) var<storage, read> materials: array<Material>;
-@group(0) @binding(8) var<storage, read> lights: array<Light>;
-@group(0) @binding(9) var<storage, read> emitters: array<Emitter>;
-// Images (TEXELS: TEXTURES or ENV_MAP): the table and the packed texels (render::texture).
+#endif
+// Images (TEXELS: TEXTURES or ENV_MAP): the packed texels (render::texture), then the
+// environment map's distribution as f32 bits.
 #ifdef TEXELS
-@group(0) @binding(11) var<storage, read> textures: array<TextureInfo>;
-@group(0) @binding(12) var<storage, read> texels: array<u32>;
+@group(0) @binding(5) var<storage, read> texels: array<u32>;
 #endif
 #ifdef TEXTURES
-@group(0) @binding(13) var<storage, read> triangle_attrs: array<TriangleAttrs>;
+@group(0) @binding(6) var<storage, read> triangle_attrs: array<TriangleAttrs>;
 #endif
+
+// The slots of the objects header (objects.rs, ObjectsHeader).
+const OBJ_SPHERES: u32 = #{OBJ_SPHERES};
+const OBJ_CYLINDERS: u32 = #{OBJ_CYLINDERS};
+const OBJ_PLANES: u32 = #{OBJ_PLANES};
+const OBJ_SHAPE_REFS: u32 = #{OBJ_SHAPE_REFS};
+const OBJ_MATERIALS: u32 = #{OBJ_MATERIALS};
+const OBJ_LIGHTS: u32 = #{OBJ_LIGHTS};
+const OBJ_EMITTERS: u32 = #{OBJ_EMITTERS};
+const OBJ_TEXTURES: u32 = #{OBJ_TEXTURES};
+const OBJ_ENVIRONMENT: u32 = #{OBJ_ENVIRONMENT};
+const OBJ_ENV_DISTRIBUTION: u32 = #{OBJ_ENV_DISTRIBUTION};
+const OBJ_SPHERE_COUNT: u32 = #{OBJ_SPHERE_COUNT};
+const OBJ_CYLINDER_COUNT: u32 = #{OBJ_CYLINDER_COUNT};
+const OBJ_PLANE_COUNT: u32 = #{OBJ_PLANE_COUNT};
+
+// Word `slot` of the objects header (OBJ_*: where an array starts, in 16-byte words, or a
+// count).
+fn object_slot(slot: u32) -> u32 {
+    return objects[slot >> 2u][slot & 3u];
+}
+
+fn f3(w: vec4<u32>) -> vec3<f32> {
+    return bitcast<vec3<f32>>(w.xyz);
+}
+
+fn f4(w: vec4<u32>) -> vec4<f32> {
+    return bitcast<vec4<f32>>(w);
+}
+
+// Each load_* reads element i of its array, field by field in the order of its struct in
+// strahl::types (the host writes the Rust twin's bytes, crates/core/src/layout.rs).
+#ifdef SPHERES
+fn sphere_count() -> u32 {
+    return object_slot(OBJ_SPHERE_COUNT);
+}
+
+fn load_sphere(i: u32) -> Sphere {
+    let b = object_slot(OBJ_SPHERES) + 2u * i;
+    let w0 = objects[b];
+    let w1 = objects[b + 1u];
+    return Sphere(f3(w0), bitcast<f32>(w0.w), w1.x, w1.y, w1.z, w1.w);
+}
+#endif
+
+#ifdef CYLINDERS
+fn cylinder_count() -> u32 {
+    return object_slot(OBJ_CYLINDER_COUNT);
+}
+
+fn load_cylinder(i: u32) -> Cylinder {
+    let b = object_slot(OBJ_CYLINDERS) + 3u * i;
+    let w0 = objects[b];
+    let w1 = objects[b + 1u];
+    let w2 = objects[b + 2u];
+    return Cylinder(f3(w0), bitcast<f32>(w0.w), f3(w1), w1.w, w2.x, w2.y, w2.z, w2.w);
+}
+#endif
+
+#ifdef PLANES
+fn plane_count() -> u32 {
+    return object_slot(OBJ_PLANE_COUNT);
+}
+
+fn load_plane(i: u32) -> Plane {
+    let b = object_slot(OBJ_PLANES) + 2u * i;
+    let w0 = objects[b];
+    let w1 = objects[b + 1u];
+    return Plane(f3(w0), w0.w, f3(w1), w1.w);
+}
+#endif
+
+#ifdef BVH
+// Shape reference k of the leaf order, four to a word.
+fn load_shape_ref(k: u32) -> u32 {
+    return objects[object_slot(OBJ_SHAPE_REFS) + (k >> 2u)][k & 3u];
+}
+#endif
+
+fn load_material(i: u32) -> Material {
+    let b = object_slot(OBJ_MATERIALS) + 5u * i;
+    let w0 = objects[b];
+    let w1 = objects[b + 1u];
+    let w2 = objects[b + 2u];
+    let w3 = objects[b + 3u];
+    let w4 = objects[b + 4u];
+    return Material(
+        f3(w0), w0.w,
+        f3(w1), bitcast<f32>(w1.w),
+        bitcast<f32>(w2.x), w2.y, w2.z, w2.w,
+        bitcast<f32>(w3.x), w3.y, w3.z, bitcast<f32>(w3.w),
+        bitcast<f32>(w4.x), bitcast<f32>(w4.y), w4.zw,
+    );
+}
+
+fn load_light(i: u32) -> Light {
+    let b = object_slot(OBJ_LIGHTS) + 2u * i;
+    let w0 = objects[b];
+    let w1 = objects[b + 1u];
+    return Light(f3(w0), w0.w, f3(w1), w1.w);
+}
+
+fn load_emitter(i: u32) -> Emitter {
+    let w = objects[object_slot(OBJ_EMITTERS) + i];
+    return Emitter(w.x, w.y, bitcast<f32>(w.z), bitcast<f32>(w.w));
+}
+
+#ifdef TEXELS
+fn load_texture(i: u32) -> TextureInfo {
+    let b = object_slot(OBJ_TEXTURES) + 3u * i;
+    let w0 = objects[b];
+    let w2 = objects[b + 2u];
+    return TextureInfo(w0.x, w0.y, w0.z, w0.w, f4(objects[b + 1u]), bitcast<vec2<f32>>(w2.xy), w2.zw);
+}
+#endif
+
 #ifdef ENVIRONMENT
-@group(0) @binding(14) var<storage, read> environment: array<Environment>;
+// The environment (one element; ENV_MAP scenes only).
+fn load_environment() -> Environment {
+    let b = object_slot(OBJ_ENVIRONMENT);
+    let w0 = objects[b];
+    let w1 = objects[b + 1u];
+    let w2 = objects[b + 2u];
+    let sh = array<vec4<f32>, 9>(
+        f4(objects[b + 3u]), f4(objects[b + 4u]), f4(objects[b + 5u]),
+        f4(objects[b + 6u]), f4(objects[b + 7u]), f4(objects[b + 8u]),
+        f4(objects[b + 9u]), f4(objects[b + 10u]), f4(objects[b + 11u]),
+    );
+    return Environment(
+        f3(w0), w0.w,
+        bitcast<f32>(w1.x), bitcast<f32>(w1.y), w1.z, bitcast<f32>(w1.w),
+        w2.x, w2.y, w2.zw,
+        sh,
+    );
+}
 #endif
-#ifdef ENV_MAP
-@group(0) @binding(15) var<storage, read> env_distribution: array<f32>;
+
+#ifdef TEXELS
+// Entry k of the environment map's distribution (render::environment).
+fn env_distribution(k: u32) -> f32 {
+    return bitcast<f32>(texels[object_slot(OBJ_ENV_DISTRIBUTION) + k]);
+}
 #endif

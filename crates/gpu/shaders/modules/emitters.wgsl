@@ -4,16 +4,16 @@
 #define_import_path strahl::emitters
 
 #import strahl::types::{Emitter, Light, LIGHT_POINT, LIGHT_STAND_IN, KIND_TRIANGLE, INDEX_BITS, INDEX_MASK, MATERIAL_TWO_SIDED, F32_MAX}
-#import strahl::bindings::{frame, emitters, lights, materials}
+#import strahl::bindings::{frame, load_emitter, load_light, load_material}
 #ifdef TRIANGLES
 #import strahl::traverse::scene_triangle
 #endif
 #ifdef SPHERES
-#import strahl::bindings::spheres
+#import strahl::bindings::{load_sphere, sphere_count}
 #endif
 #ifdef ENVIRONMENT
 #import strahl::types::FRAME_ENVIRONMENT
-#import strahl::bindings::environment
+#import strahl::bindings::load_environment
 #import strahl::environment::env_sample
 #endif
 #import strahl::surface::emission
@@ -39,7 +39,7 @@ fn select_emitter(u: f32) -> u32 {
     var hi = frame.num_emitters - 1u;
     while lo < hi {
         let mid = (lo + hi) / 2u;
-        if u < emitters[mid].cdf {
+        if u < load_emitter(mid).cdf {
             hi = mid;
         } else {
             lo = mid + 1u;
@@ -83,7 +83,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
 #ifdef ENVIRONMENT
     // The environment with probability select_prob, else an area emitter with u.x rescaled.
     if (frame.flags & FRAME_ENVIRONMENT) != 0u {
-        let sel = environment[0].select_prob;
+        let sel = load_environment().select_prob;
         if frame.num_emitters == 0u || ux < sel {
             let es = env_sample(u.y, u.z);
             return LightSample(es.dir, F32_MAX, es.value, es.pdf, es.valid);
@@ -94,7 +94,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     if frame.num_emitters == 0u {
         return none;
     }
-    let e = emitters[select_emitter(ux)];
+    let e = load_emitter(select_emitter(ux));
     let kind = e.source >> INDEX_BITS;
     let i = e.source & INDEX_MASK;
     var q = vec3<f32>(0.0);
@@ -115,7 +115,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
 #endif
 #ifdef SPHERES
     if !found {
-        let s = spheres[i];
+        let s = load_sphere(i);
         let z = 1.0 - 2.0 * u.y;
         let rad = sqrt(max(1.0 - z * z, 0.0));
         let phi = TWO_PI * u.z;
@@ -128,7 +128,7 @@ fn sample_light(p: vec3<f32>, u: vec3<f32>) -> LightSample {
     if !found {
         return none;
     }
-    let m = materials[material];
+    let m = load_material(material);
     let to = q - p;
     let d2 = dot(to, to);
     let dist = sqrt(d2);

@@ -9,9 +9,9 @@
 
 #ifdef ENVIRONMENT
 #import strahl::types::{Environment, FRAME_ENVIRONMENT, ENV_FLAG_MAP, ENV_FLAG_UNIFORM}
-#import strahl::bindings::{frame, environment}
+#import strahl::bindings::{frame, load_environment}
 #ifdef ENV_MAP
-#import strahl::bindings::{env_distribution, textures}
+#import strahl::bindings::{env_distribution, load_texture}
 #import strahl::texture::texture_sample
 #endif
 
@@ -50,7 +50,7 @@ fn find_cell(first: u32, n: u32, u: f32) -> u32 {
     var hi = n - 1u;
     while lo < hi {
         let mid = (lo + hi) / 2u;
-        if u < env_distribution[first + mid + 1u] {
+        if u < env_distribution(first + mid + 1u) {
             hi = mid;
         } else {
             lo = mid + 1u;
@@ -61,8 +61,8 @@ fn find_cell(first: u32, n: u32, u: f32) -> u32 {
 
 fn cell_pdf(e: Environment, i: u32, j: u32) -> f32 {
     let row = e.height + 1u + j * (e.width + 1u);
-    let pu = (env_distribution[row + i + 1u] - env_distribution[row + i]) * f32(e.width);
-    return pu * ((env_distribution[j + 1u] - env_distribution[j]) * f32(e.height));
+    let pu = (env_distribution(row + i + 1u) - env_distribution(row + i)) * f32(e.width);
+    return pu * ((env_distribution(j + 1u) - env_distribution(j)) * f32(e.height));
 }
 #endif
 
@@ -71,10 +71,10 @@ fn env_background(d: vec3<f32>) -> vec3<f32> {
     if !env_present() {
         return frame.background;
     }
-    let e = environment[0];
+    let e = load_environment();
 #ifdef ENV_MAP
     if (e.flags & ENV_FLAG_MAP) != 0u {
-        return e.radiance * texture_sample(textures[e.texture], map_uv(e, d)).xyz;
+        return e.radiance * texture_sample(load_texture(e.texture), map_uv(e, d)).xyz;
     }
 #endif
     return e.radiance;
@@ -85,7 +85,7 @@ fn env_pdf(d: vec3<f32>) -> f32 {
     if !env_present() {
         return 0.0;
     }
-    let e = environment[0];
+    let e = load_environment();
     if (e.flags & ENV_FLAG_UNIFORM) != 0u {
         return e.select_prob * (0.25 / PI);
     }
@@ -107,7 +107,7 @@ fn env_pdf(d: vec3<f32>) -> f32 {
 // A direction towards the environment from two uniform numbers (render::environment::sample).
 fn env_sample(u1: f32, u2: f32) -> EnvSample {
     let none = EnvSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false);
-    let e = environment[0];
+    let e = load_environment();
     var d: vec3<f32>;
     var pdf: f32;
     if (e.flags & ENV_FLAG_UNIFORM) != 0u {
@@ -120,10 +120,10 @@ fn env_sample(u1: f32, u2: f32) -> EnvSample {
 #ifdef ENV_MAP
         let h = e.height;
         let j = find_cell(0u, h, u1);
-        let dv = (u1 - env_distribution[j]) / (env_distribution[j + 1u] - env_distribution[j]);
+        let dv = (u1 - env_distribution(j)) / (env_distribution(j + 1u) - env_distribution(j));
         let row = h + 1u + j * (e.width + 1u);
         let i = find_cell(row, e.width, u2);
-        let du = (u2 - env_distribution[row + i]) / (env_distribution[row + i + 1u] - env_distribution[row + i]);
+        let du = (u2 - env_distribution(row + i)) / (env_distribution(row + i + 1u) - env_distribution(row + i));
         let u = (f32(i) + du) / f32(e.width);
         let v = (f32(j) + dv) / f32(h);
         let phi = 2.0 * PI * (u - 0.5);
@@ -149,7 +149,7 @@ fn env_diffuse(n: vec3<f32>) -> vec3<f32> {
     if !env_present() {
         return vec3<f32>(0.0);
     }
-    let e = environment[0];
+    let e = load_environment();
     let m = to_map(e, n);
     let x = m.x;
     let y = m.y;

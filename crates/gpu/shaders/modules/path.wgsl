@@ -11,9 +11,9 @@
 #define_import_path strahl::path
 
 #import strahl::types::{Material, MAT_EMISSIVE, MAT_PBR, MAT_DIELECTRIC, MATERIAL_UNLIT, KIND_TRIANGLE, KIND_SPHERE, INDEX_BITS, F32_MAX}
-#import strahl::bindings::{frame, materials}
+#import strahl::bindings::{frame, load_material}
 #ifdef LIGHTS
-#import strahl::bindings::lights
+#import strahl::bindings::load_light
 #import strahl::emitters::delta_light
 #import strahl::traverse::occluded
 #endif
@@ -89,7 +89,7 @@ fn delta_transmittance(o: vec3<f32>, d: vec3<f32>, tmax: f32) -> f32 {
         if !hit.found {
             return tr;
         }
-        let m = materials[hit_material(hit)];
+        let m = load_material(hit_material(hit));
         if (m.flags & MATERIAL_ALPHA) == 0u {
             return 0.0;
         }
@@ -166,7 +166,7 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
 #endif
         return false;
     }
-    let untextured = materials[hit_material(hit)];
+    let untextured = load_material(hit_material(hit));
     let n = hit_normal(hit, o, d);
     let wo = -d;
     let sf = surface(untextured, hit.prim_ref, o + d * hit.t, n);
@@ -216,7 +216,7 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
         // Point and directional lights, each at every vertex (render::path: chosen by power
         // with the area lights, one could be starved).
         for (var i = 0u; i < frame.num_lights; i += 1u) {
-            let dl = delta_light(lights[i], x);
+            let dl = delta_light(load_light(i), x);
             if dl.valid {
                 let ev = eval_above(m, wo, dl.dir, ns, ng);
                 if max3(ev.f_cos) > 0.0 {

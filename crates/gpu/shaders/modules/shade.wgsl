@@ -7,7 +7,7 @@
 #define_import_path strahl::shade
 
 #import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, MAT_PBR, MATERIAL_ALPHA, LIGHT_POINT, F32_MAX}
-#import strahl::bindings::{frame, materials, lights}
+#import strahl::bindings::{frame, load_material, load_light}
 #import strahl::traverse::{nearest_hit, occluded, hit_normal, hit_material}
 #import strahl::spawn::spawn_origin
 #import strahl::camera::primary_ray
@@ -71,7 +71,7 @@ fn shadow_transmittance(o: vec3<f32>, d: vec3<f32>, t: f32, n: vec3<f32>, l: vec
             return tr;
         }
         // Dielectrics tint the shadow ray; emissive surfaces (lights) let it through.
-        let m = materials[hit_material(hit)];
+        let m = load_material(hit_material(hit));
         let hn = hit_normal(hit, origin, l);
 #ifdef ALPHA
         if (m.flags & MATERIAL_ALPHA) != 0u {
@@ -106,7 +106,7 @@ fn direct_light(o: vec3<f32>, d: vec3<f32>, t: f32, ng: vec3<f32>, ns: vec3<f32>
 #endif
 #ifdef LIGHTS
     for (var i = 0u; i < frame.num_lights; i += 1u) {
-        let light = lights[i];
+        let light = load_light(i);
         var l: vec3<f32>;
         var dist: f32;
         var e: vec3<f32>;
@@ -195,7 +195,7 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
             continue;
         }
         let n = hit_normal(hit, cur.origin, cur.dir);
-        let s = surface(materials[hit_material(hit)], hit.prim_ref, cur.origin + cur.dir * hit.t, n);
+        let s = surface(load_material(hit_material(hit)), hit.prim_ref, cur.origin + cur.dir * hit.t, n);
         let m = s.m;
         var weight = cur.weight;
 #ifdef ALPHA

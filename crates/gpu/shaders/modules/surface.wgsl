@@ -9,7 +9,7 @@
 #import strahl::types::{Material, MAT_DIELECTRIC, MAT_MIRROR, MAT_PBR, MATERIAL_ALPHA_MASK, MATERIAL_ALPHA_BLEND}
 #ifdef TEXTURES
 #import strahl::types::{TextureInfo, KIND_TRIANGLE, INDEX_BITS, INDEX_MASK, ATTR_NORMALS, ATTR_COLORS, TEXTURE_UV1, MATERIAL_UNLIT}
-#import strahl::bindings::{triangle_attrs, textures}
+#import strahl::bindings::{triangle_attrs, load_texture}
 #import strahl::texture::texture_sample
 #ifdef TRIANGLES
 #import strahl::traverse::scene_triangle
@@ -121,7 +121,7 @@ fn look(texture: u32, tri: u32, w: vec3<f32>) -> vec4<f32> {
     if texture == 0u {
         return vec4<f32>(1.0);
     }
-    let t = textures[texture - 1u];
+    let t = load_texture(texture - 1u);
     let a = triangle_attrs[tri];
     var c = a.uv;
     if (t.flags & TEXTURE_UV1) != 0u {
@@ -196,7 +196,7 @@ fn surface(m: Material, prim: u32, p: vec3<f32>, n: vec3<f32>) -> Surface {
         }
     }
     if m.normal_texture != 0u {
-        let t = textures[m.normal_texture - 1u];
+        let t = load_texture(m.normal_texture - 1u);
         let uv = corner_uvs(t, i);
         let d1 = uv[1] - uv[0];
         let d2 = uv[2] - uv[0];

@@ -6,7 +6,7 @@
 
 #ifdef TEXELS
 #import strahl::types::{TextureInfo, TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT, TEXTURE_NEAREST, TEXTURE_LINEAR_RGB, TEXTURE_DATA, WRAP_REPEAT, WRAP_CLAMP, WRAP_MIRROR}
-#import strahl::bindings::{textures, texels}
+#import strahl::bindings::{load_texture, texels}
 
 // A coordinate brought into [0, 1] by the wrap mode.
 fn wrap_coord(u: f32, mode: u32) -> f32 {

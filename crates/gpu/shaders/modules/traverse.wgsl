@@ -22,7 +22,7 @@
 #import strahl::types::{Node, F32_MAX, LINK_LEAF, LINK_SHAPES, LINK_COUNT_SHIFT, LINK_FIRST_MASK, LINK_EMPTY}
 // The parts after the first of a split array exist in split variants only, and only code of
 // those uses them (an imported item that no code uses is not looked up).
-#import strahl::bindings::{nodes, nodes_1, nodes_2, nodes_3, shape_refs}
+#import strahl::bindings::{nodes, nodes_1, nodes_2, nodes_3, load_shape_ref}
 #ifdef TRIANGLES
 #import strahl::types::LeafTriangle
 #import strahl::bindings::{leaf_triangles, leaf_triangles_1, leaf_triangles_2, leaf_triangles_3}
@@ -30,11 +30,11 @@
 #endif
 #import strahl::roots::{Roots, roots_empty}
 #ifdef SPHERES
-#import strahl::bindings::spheres
+#import strahl::bindings::{load_sphere, sphere_count}
 #import strahl::sphere::{sphere_roots, sphere_first, sphere_normal}
 #endif
 #ifdef CYLINDERS
-#import strahl::bindings::cylinders
+#import strahl::bindings::{load_cylinder, cylinder_count}
 #import strahl::cylinder::{cylinder_roots, cylinder_first, cylinder_normal}
 #endif
 #ifdef TRIANGLES
@@ -43,7 +43,7 @@
 #import strahl::triangle::{triangle_roots, triangle_intersect, vertices_intersect, shear_new, Shear, triangle_normal}
 #endif
 #ifdef PLANES
-#import strahl::bindings::planes
+#import strahl::bindings::{load_plane, plane_count}
 #import strahl::plane::{plane_roots, plane_first}
 #endif
 
@@ -116,12 +116,12 @@ fn prim_roots(r: u32, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots
     let i = r & INDEX_MASK;
 #ifdef SPHERES
     if kind == KIND_SPHERE {
-        return sphere_roots(spheres[i], o, d, tmin, tmax);
+        return sphere_roots(load_sphere(i), o, d, tmin, tmax);
     }
 #endif
 #ifdef CYLINDERS
     if kind == KIND_CYLINDER {
-        return cylinder_roots(cylinders[i], o, d, tmin, tmax);
+        return cylinder_roots(load_cylinder(i), o, d, tmin, tmax);
     }
 #endif
 #ifdef TRIANGLES
@@ -131,7 +131,7 @@ fn prim_roots(r: u32, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> Roots
 #endif
 #ifdef PLANES
     if kind == KIND_PLANE {
-        return plane_roots(planes[i], o, d, tmin, tmax);
+        return plane_roots(load_plane(i), o, d, tmin, tmax);
     }
 #endif
     return roots_empty();
@@ -144,12 +144,12 @@ fn prim_first(r: u32, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> vec2<
     let i = r & INDEX_MASK;
 #ifdef SPHERES
     if kind == KIND_SPHERE {
-        return sphere_first(spheres[i], o, d, tmin, tmax);
+        return sphere_first(load_sphere(i), o, d, tmin, tmax);
     }
 #endif
 #ifdef CYLINDERS
     if kind == KIND_CYLINDER {
-        return cylinder_first(cylinders[i], o, d, tmin, tmax);
+        return cylinder_first(load_cylinder(i), o, d, tmin, tmax);
     }
 #endif
 #ifdef TRIANGLES
@@ -159,7 +159,7 @@ fn prim_first(r: u32, o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> vec2<
 #endif
 #ifdef PLANES
     if kind == KIND_PLANE {
-        return plane_first(planes[i], o, d, tmin, tmax);
+        return plane_first(load_plane(i), o, d, tmin, tmax);
     }
 #endif
     return vec2<f32>(-1.0, 0.0);
@@ -171,12 +171,12 @@ fn prim_normal(r: u32, o: vec3<f32>, d: vec3<f32>, t: f32, part: u32) -> vec3<f3
     let i = r & INDEX_MASK;
 #ifdef SPHERES
     if kind == KIND_SPHERE {
-        return sphere_normal(spheres[i], o, d, t);
+        return sphere_normal(load_sphere(i), o, d, t);
     }
 #endif
 #ifdef CYLINDERS
     if kind == KIND_CYLINDER {
-        return cylinder_normal(cylinders[i], o, d, t, part);
+        return cylinder_normal(load_cylinder(i), o, d, t, part);
     }
 #endif
 #ifdef TRIANGLES
@@ -186,7 +186,7 @@ fn prim_normal(r: u32, o: vec3<f32>, d: vec3<f32>, t: f32, part: u32) -> vec3<f3
 #endif
 #ifdef PLANES
     if kind == KIND_PLANE {
-        return planes[i].normal;
+        return load_plane(i).normal;
     }
 #endif
     return vec3<f32>(0.0, 0.0, 1.0);
@@ -198,13 +198,13 @@ fn prim_tag(r: u32) -> vec3<u32> {
     let i = r & INDEX_MASK;
 #ifdef SPHERES
     if kind == KIND_SPHERE {
-        let s = spheres[i];
+        let s = load_sphere(i);
         return vec3<u32>(s.object, s.face, s.material);
     }
 #endif
 #ifdef CYLINDERS
     if kind == KIND_CYLINDER {
-        let c = cylinders[i];
+        let c = load_cylinder(i);
         return vec3<u32>(c.object, c.face, c.material);
     }
 #endif
@@ -216,7 +216,7 @@ fn prim_tag(r: u32) -> vec3<u32> {
 #endif
 #ifdef PLANES
     if kind == KIND_PLANE {
-        let p = planes[i];
+        let p = load_plane(i);
         return vec3<u32>(p.object, 0u, p.material);
     }
 #endif
@@ -536,7 +536,7 @@ fn occluded(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32) -> bool {
 fn walk(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32, any_hit: bool) -> Nearest {
     var best = nearest_none(tmax);
 #ifdef PLANES
-    let np = arrayLength(&planes);
+    let np = plane_count();
     for (var i = 0u; i < np && !(any_hit && best.found); i += 1u) {
         offer_nearest(&best, prim_ref(KIND_PLANE, i), o, d, tmin);
     }
@@ -564,7 +564,7 @@ fn walk(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32, any_hit: bool) -> Near
             let end = leaf_end(cur);
             if (cur & LINK_SHAPES) != 0u {
                 for (var k = first; k < end; k += 1u) {
-                    offer_nearest(&best, shape_refs[k], o, d, tmin);
+                    offer_nearest(&best, load_shape_ref(k), o, d, tmin);
                 }
             } else {
 #ifdef TRIANGLES
@@ -576,12 +576,12 @@ fn walk(o: vec3<f32>, d: vec3<f32>, tmin: f32, tmax: f32, any_hit: bool) -> Near
     }
 #else
 #ifdef SPHERES
-    for (var i = 0u; i < arrayLength(&spheres) && !(any_hit && best.found); i += 1u) {
+    for (var i = 0u; i < sphere_count() && !(any_hit && best.found); i += 1u) {
         offer_nearest(&best, prim_ref(KIND_SPHERE, i), o, d, tmin);
     }
 #endif
 #ifdef CYLINDERS
-    for (var i = 0u; i < arrayLength(&cylinders) && !(any_hit && best.found); i += 1u) {
+    for (var i = 0u; i < cylinder_count() && !(any_hit && best.found); i += 1u) {
         offer_nearest(&best, prim_ref(KIND_CYLINDER, i), o, d, tmin);
     }
 #endif

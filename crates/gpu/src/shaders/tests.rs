@@ -301,7 +301,8 @@ fn shared_constants_reach_the_composed_shaders_exactly() {
     let shared: HashMap<&str, Shared> = constants().into_iter().collect();
     let mut seen = std::collections::HashSet::new();
     for p in Program::ALL {
-        for key in [FeatureKey::ALL, FeatureKey::ALL | FeatureKey::LOAD64] {
+        // Without a BVH for the counts of the brute-force loops.
+        for key in [FeatureKey::ALL, FeatureKey::ALL | FeatureKey::LOAD64, FeatureKey::ALL - FeatureKey::BVH] {
             let m = compose(p, key).unwrap();
             for (_, c) in m.constants.iter() {
                 let Some(name) = c.name.as_deref().and_then(|n| n.split("X_naga_oil_mod_X").next()) else {
@@ -643,3 +644,42 @@ fn every_backend_translates_and_the_validators_accept() {
     );
     assert!(failures.is_empty(), "{} failures, first: {}", failures.len(), failures[0]);
 }
+
+/// No pipeline binds more storage buffers per stage than WebGPU guarantees
+/// ([`crate::MIN_STORAGE_BUFFERS`], counted over both groups as every declared binding is in
+/// the layout), but for the parts of split arrays, one more each, and for the wavefront path
+/// tracer, which runs only where the device has room for its own; the bound is reached (so it
+/// says what strahl needs); group 0 holds only the scene's bindings and the parts.
+#[test]
+fn every_pipeline_fits_the_storage_buffers_webgpu_guarantees() {
+    use crate::split::{Split, SplitArray, extra_binding};
+    use crate::{MIN_STORAGE_BUFFERS, SCENE_BINDINGS, wavefront};
+    let mut most = 0;
+    for (p, key) in keys_to_translate() {
+        let m = compose(p, key).unwrap();
+        let names: Vec<String> = m
+            .global_variables
+            .iter()
+            .filter(|(_, g)| matches!(g.space, naga::AddressSpace::Storage { .. }))
+            .map(|(_, g)| g.name.clone().unwrap_or_default())
+            .collect();
+        let storage = names.len() as u32;
+        let split = Split::of_key(key);
+        let limit = match p {
+            Program::Wavefront => SCENE_BINDINGS + wavefront::BINDINGS,
+            _ => MIN_STORAGE_BUFFERS,
+        } + split.extra_bindings();
+        assert!(storage <= limit, "{p:?} {}: {storage} storage buffers, more than {limit}: {names:?}", key.label());
+        if p != Program::Wavefront && !split.is_split() {
+            most = most.max(storage);
+        }
+        let parts: Vec<u32> =
+            SplitArray::ALL.iter().flat_map(|&a| (1..split.parts(a)).map(move |i| extra_binding(a, i))).collect();
+        for b in group_bindings(&m, 0) {
+            assert!(b < SCENE_BINDINGS || parts.contains(&b), "{p:?} {}: scene binding {b}", key.label());
+        }
+    }
+    assert_eq!(most, MIN_STORAGE_BUFFERS, "the most any unsplit pipeline binds");
+}
+
+mod tint;
