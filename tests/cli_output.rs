@@ -339,7 +339,8 @@ fn converge_refuses_an_8_bit_reference() {
 // ---------------------------------------------------------------------------------------
 // No Vulkan driver.
 
-const NO_DRIVER: [(&str, &str); 1] = [("VK_DRIVER_FILES", "/nonexistent")];
+/// No Vulkan driver, and no other backend searched (GL would find llvmpipe).
+const NO_DRIVER: [(&str, &str); 2] = [("VK_DRIVER_FILES", "/nonexistent"), ("WGPU_BACKEND", "vulkan")];
 
 /// Without a Vulkan driver converge, stiff and bench measure the CPU, as render falls back to
 /// it; converge --backend gpu fails and leaves no folder behind.
@@ -360,7 +361,7 @@ fn without_a_vulkan_driver_the_cpu_is_measured() {
     let out = strahl_env(&[&["converge", "assets/scenes/sphere.toml"][..], &small, &["-o", r]].concat(), &NO_DRIVER);
     let err = stderr_of(&out);
     assert!(out.status.success(), "{err}");
-    assert_eq!(err.matches("backend: cpu (no Vulkan adapter found)").count(), 2, "{err}");
+    assert_eq!(err.matches("backend: cpu (no GPU adapter found)").count(), 2, "{err}");
     let csv = std::fs::read_to_string(report.join("convergence.csv")).unwrap();
     assert!(csv.lines().skip(1).all(|l| l.starts_with("cpu,")) && csv.lines().count() == 4, "{csv}");
 
@@ -372,7 +373,7 @@ fn without_a_vulkan_driver_the_cpu_is_measured() {
     ];
     let out = strahl_env(&args.concat(), &NO_DRIVER);
     let err = fails(&out, 1);
-    assert!(err.contains("no Vulkan adapter"), "{err}");
+    assert!(err.contains("no GPU adapter"), "{err}");
     assert!(!gpu_only.exists(), "a failed run leaves no folder");
 
     let out = strahl_env(&["stiff", "--scale", "0.0001"], &NO_DRIVER);

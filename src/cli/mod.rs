@@ -1,5 +1,6 @@
 //! Subcommands of `strahl`.
 
+mod adapters;
 mod bench;
 mod bench_rays;
 mod converge;
@@ -19,9 +20,10 @@ use strahl_gpu::select::Choice;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum BackendChoice {
     /// A hardware GPU if there is one; else the faster of lavapipe and the CPU backend for the
-    /// work at hand; the CPU backend without any Vulkan adapter.
+    /// work at hand; the CPU backend without any GPU adapter.
     Auto,
-    /// WGSL compute shaders through wgpu (Vulkan); an error without an adapter.
+    /// WGSL compute shaders through wgpu (the best adapter: WGPU_BACKEND and WGPU_ADAPTER_NAME
+    /// choose); an error without an adapter.
     Gpu,
     /// The CPU reference (f32 mirror of the GPU, rayon over all cores).
     Cpu,
@@ -80,6 +82,8 @@ pub enum Command {
     View(NoViewer),
     /// Measure error against run time of progressive path tracing: CSV, plot and table.
     Converge(converge::ConvergeArgs),
+    /// List every GPU adapter of every backend, its limits and whether strahl runs on it.
+    Adapters(adapters::AdaptersArgs),
 }
 
 /// `strahl view`'s arguments in a build without the viewer: whatever they are, the command
@@ -113,6 +117,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
              features, `cargo build --release`, for `strahl view`"
         )),
         Command::Converge(a) => converge::run(a),
+        Command::Adapters(a) => adapters::run(a),
     }
 }
 

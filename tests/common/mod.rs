@@ -27,12 +27,30 @@ pub fn gpu_tests_may_skip() -> bool {
     std::env::var("STRAHL_SKIP_GPU_TESTS").is_ok_and(|v| v == "1")
 }
 
-/// The GPU context for GPU tests: lavapipe in CI. Without any Vulkan adapter the test fails
-/// with the install hint, unless STRAHL_SKIP_GPU_TESTS=1 asks to skip (returns None, the skip
-/// recorded by [`skip`]).
+/// The variable naming (part of) the adapter the GPU tests must run on, in any case: where it
+/// is set and the adapter strahl takes has another name, [`gpu`] fails the test. `.ci/run`
+/// sets it beside `WGPU_BACKEND` or `VK_DRIVER_FILES` when it runs the GPU tests on another
+/// driver, so that a driver that cannot be found fails there instead of leaving the tests on
+/// lavapipe. The CLI tests' `strahl` processes inherit the same variables and choose the same
+/// way.
+pub const EXPECT_ADAPTER_VAR: &str = "STRAHL_EXPECT_ADAPTER";
+
+/// The GPU context for GPU tests: lavapipe in CI. Without any adapter the test fails with the
+/// install hint, unless STRAHL_SKIP_GPU_TESTS=1 asks to skip (returns None, the skip recorded
+/// by [`skip`]); with an adapter other than [`EXPECT_ADAPTER_VAR`] names, it fails.
 pub fn gpu() -> Option<GpuContext> {
     match GpuContext::new() {
-        Ok(ctx) => Some(ctx),
+        Ok(ctx) => {
+            if let Ok(want) = std::env::var(EXPECT_ADAPTER_VAR) {
+                let info = &ctx.adapter_info;
+                assert!(
+                    info.name.to_lowercase().contains(&want.to_lowercase()),
+                    "{EXPECT_ADAPTER_VAR}={want}, but the tests got {}",
+                    strahl_gpu::instance::describe(info)
+                );
+            }
+            Some(ctx)
+        }
         Err(e) if gpu_tests_may_skip() => {
             skip(&format!("no GPU: {e}"));
             None

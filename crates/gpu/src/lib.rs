@@ -1,4 +1,4 @@
-//! The GPU backend: WGSL compute shaders through wgpu (Vulkan).
+//! The GPU backend: WGSL compute shaders through wgpu (Vulkan, Metal, DX12 or GL).
 //!
 //! [`GpuContext`] owns the device and caches one pipeline per (program, [`FeatureKey`]);
 //! [`SceneBuffers`] holds a scene's storage buffers; [`render`] and [`trace`] dispatch.
@@ -26,8 +26,8 @@ use strahl_core::accel::gpu_bvh::MAX_PRIMS;
 use strahl_core::layout::{FlatScene, FrameParams};
 use wgpu::util::DeviceExt;
 
-/// How to get a Vulkan driver when none is found.
-pub const NO_ADAPTER_HINT: &str = "no Vulkan adapter found. Install a Vulkan driver; on Debian/Ubuntu the \
+/// How to get a driver when no adapter is found.
+pub const NO_ADAPTER_HINT: &str = "no GPU adapter found. Install a Vulkan driver; on Debian/Ubuntu the \
      software one is `apt-get install mesa-vulkan-drivers` (lavapipe), or use --backend cpu";
 
 #[derive(Debug, thiserror::Error)]
@@ -36,6 +36,8 @@ pub enum GpuError {
     NoAdapter,
     #[error("cannot open the GPU device: {0}")]
     Device(String),
+    #[error("{var}={value}: {why}")]
+    Environment { var: &'static str, value: String, why: String },
     #[error(transparent)]
     Shader(#[from] shaders::ShaderError),
     #[error("{what} needs {need} bytes, more than this adapter allows in one buffer ({limit} bytes, its {limit_name})")]
@@ -194,7 +196,7 @@ fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
 }
 
 impl GpuContext {
-    /// Opens the first Vulkan adapter (a discrete GPU preferred).
+    /// Opens the adapter [`instance::request_adapter`] takes (a discrete GPU preferred).
     pub fn new() -> Result<Self, GpuError> {
         Self::from_adapter(&instance::request_adapter()?)
     }

@@ -99,7 +99,7 @@ pub fn decide(
     software_table: impl Fn(Workload) -> Backend,
 ) -> (Backend, String) {
     let Some(info) = adapter else {
-        return (Backend::Cpu, "no Vulkan adapter found".into());
+        return (Backend::Cpu, "no GPU adapter found".into());
     };
     if !instance::is_software(info) {
         return (Backend::Gpu, format!("{}, a {:?}", info.name, info.device_type));
@@ -145,7 +145,12 @@ pub fn select(choice: Choice, workload: Workload) -> Result<Selection, GpuError>
         Choice::Cpu => Ok(Selection { selected: Selected::Cpu, note: None }),
         Choice::Gpu => Ok(Selection { selected: Selected::Gpu(Box::new(GpuContext::new()?)), note: None }),
         Choice::Auto => {
-            let adapter = instance::request_adapter().ok();
+            // A bad WGPU_BACKEND or WGPU_ADAPTER_NAME is the user's mistake, said, not a reason
+            // to take the CPU quietly.
+            let adapter = match instance::request_adapter() {
+                Err(e @ GpuError::Environment { .. }) => return Err(e),
+                r => r.ok(),
+            };
             let info = adapter.as_ref().map(|a| a.get_info());
             let (backend, why) = decide(info.as_ref(), workload, on_software_device);
             let (Backend::Gpu, Some(adapter), Some(info)) = (backend, adapter, info) else {
@@ -184,7 +189,7 @@ mod tests {
         let gpu_everywhere = |_| Backend::Gpu;
         let cpu_everywhere = |_| Backend::Cpu;
         // No adapter: the cpu, whatever the table says.
-        assert_eq!(decide(None, Path, gpu_everywhere), (Backend::Cpu, "no Vulkan adapter found".into()));
+        assert_eq!(decide(None, Path, gpu_everywhere), (Backend::Cpu, "no GPU adapter found".into()));
         // A hardware GPU always wins.
         let hw = adapter("RTX", wgpu::DeviceType::DiscreteGpu);
         for w in [Whitted, Path, Trace] {

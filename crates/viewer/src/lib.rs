@@ -66,8 +66,29 @@ pub fn run(opts: ViewOptions) -> Result<()> {
         prep.prepare_time.as_secs_f64()
     );
     let mut setup = egui_wgpu::WgpuSetupCreateNew::without_display_handle();
-    // Vulkan only, like the rest of strahl (lavapipe's GL adapter renders slightly differently).
-    setup.instance_descriptor.backends = wgpu::Backends::VULKAN;
+    // Vulkan unless WGPU_BACKEND says otherwise: lavapipe's GL adapter renders slightly
+    // differently, and GL through a window is untested here. WGPU_ADAPTER_NAME and strahl's
+    // ranking choose the adapter, as for every other subcommand.
+    use strahl_gpu::instance;
+    setup.instance_descriptor.backends = match std::env::var_os(instance::BACKEND_VAR) {
+        Some(_) => instance::backends_from_env()?,
+        None => wgpu::Backends::VULKAN,
+    };
+    setup.native_adapter_selector = Some(Arc::new(|adapters, surface| {
+        let want = std::env::var(instance::ADAPTER_NAME_VAR).ok().map(|w| w.to_lowercase());
+        let mut fit: Vec<&wgpu::Adapter> = adapters
+            .iter()
+            .filter(|a| surface.is_none_or(|s| a.is_surface_supported(s)))
+            .filter(|a| want.as_ref().is_none_or(|w| a.get_info().name.to_lowercase().contains(w)))
+            .collect();
+        fit.sort_by_key(|a| instance::rank(&a.get_info(), &a.limits()));
+        fit.first().map(|a| (*a).clone()).ok_or_else(|| match &want {
+            Some(w) => {
+                format!("{}={w}: no adapter that can draw to the window has it in its name", instance::ADAPTER_NAME_VAR)
+            }
+            None => "no adapter can draw to the window".to_string(),
+        })
+    }));
     setup.device_descriptor = Arc::new(|adapter| {
         let mut d = GpuContext::device_descriptor(adapter);
         d.label = Some("strahl view");
