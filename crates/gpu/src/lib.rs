@@ -372,8 +372,9 @@ impl GpuContext {
                 source: wgpu::ShaderSource::Naga(std::borrow::Cow::Owned(module)),
             })
         })?;
-        *slot = Some((shader.clone(), bindings));
-        Ok(slot.clone().expect("just filled"))
+        let entry = (shader, bindings);
+        *slot = Some(entry.clone());
+        Ok(entry)
     }
 
     /// Compiles the pipeline of `entry` for the variant `key`.
