@@ -100,6 +100,54 @@ pub fn gpu_path_image(
     p.image().unwrap()
 }
 
+/// Camera rays through random sub-pixel positions, and random rays from around the scene
+/// towards random points of its bounds.
+pub fn test_rays(prep: &strahl_core::render::Prepared, n: usize, seed: u64) -> Vec<strahl_core::query::RayQuery> {
+    let mut rng = Rng(seed);
+    let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
+    let (lo, hi) = match prep.bvh.nodes.first() {
+        Some(root) => (
+            strahl_core::math::V3::from_array(root.bmin).cast::<f64>(),
+            strahl_core::math::V3::from_array(root.bmax).cast::<f64>(),
+        ),
+        None => (strahl_core::math::V3::splat(-10.0), strahl_core::math::V3::splat(10.0)),
+    };
+    let size = (hi - lo).length().max(1.0);
+    let centre = (lo + hi) * 0.5;
+    (0..n)
+        .map(|i| {
+            let (origin, dir) = if i % 2 == 0 {
+                let x = (rng.unit() * frame.width as f64) as u32;
+                let y = (rng.unit() * frame.height as f64) as u32;
+                let r = strahl_core::render::camera::primary_ray(&frame, x, y, (rng.next_u64() % 64) as u32);
+                (r.origin.to_f64(), r.dir.to_f64())
+            } else {
+                let mut u = || rng.range(-1.0, 1.0);
+                let o = centre + strahl_core::math::V3::new(u(), u(), u()) * size;
+                let target =
+                    strahl_core::math::V3::new(rng.range(lo.x, hi.x), rng.range(lo.y, hi.y), rng.range(lo.z, hi.z));
+                (o, (target - o).normalize())
+            };
+            strahl_core::query::RayQuery {
+                origin: origin.cast::<f32>().cast(),
+                dir: dir.cast::<f32>().cast(),
+                tmin: 0.0,
+                tmax: f64::INFINITY,
+            }
+        })
+        .collect()
+}
+
+/// Same primitive, t within a relative 1e-4, normals within 0.3°, same enter flag.
+pub fn same_hit(a: &strahl_core::primitives::Hit<f32>, b: &strahl_core::primitives::Hit<f32>) -> bool {
+    a.prim_ref == b.prim_ref
+        && a.tag.object == b.tag.object
+        && a.tag.face == b.tag.face
+        && (a.t - b.t).abs() <= 1e-4 * a.t.abs().max(1.0)
+        && a.normal.dot(b.normal) > 0.99999
+        && a.enter == b.enter
+}
+
 /// Mean over the given pixels (channels averaged) and its standard error from their spread
 /// (pixels are independent estimates).
 pub fn mean_and_error(values: &[f64]) -> (f64, f64) {

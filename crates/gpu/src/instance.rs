@@ -149,6 +149,27 @@ pub fn request_adapter() -> Result<wgpu::Adapter, GpuError> {
     })
 }
 
+/// The adapter to open without blocking: in a browser the one WebGPU offers
+/// (`navigator.gpu.requestAdapter`, high performance preferred), natively
+/// [`request_adapter`]'s.
+pub async fn request_adapter_async() -> Result<wgpu::Adapter, GpuError> {
+    if !crate::IN_BROWSER {
+        return request_adapter();
+    }
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::BROWSER_WEBGPU,
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let options =
+        wgpu::RequestAdapterOptions { power_preference: wgpu::PowerPreference::HighPerformance, ..Default::default() };
+    instance.request_adapter(&options).await.map_err(|e| {
+        GpuError::Device(format!(
+            "this browser offers no WebGPU adapter ({e}): it needs WebGPU enabled (Chrome 113 or later, \
+             Firefox 141 or later, Safari 26 or later)"
+        ))
+    })
+}
+
 /// An adapter in a few words: its name and backend, e.g. `llvmpipe (LLVM 19.1.7, 256 bits) on Vulkan`.
 pub fn describe(info: &wgpu::AdapterInfo) -> String {
     format!("{} on {}", info.name, info.backend)

@@ -1,7 +1,15 @@
-//! The GPU backend: WGSL compute shaders through wgpu (Vulkan, Metal, DX12 or GL).
+//! The GPU backend: WGSL compute shaders through wgpu (Vulkan, Metal, DX12, GL, or WebGPU in
+//! a browser).
 //!
 //! [`GpuContext`] owns the device and caches one pipeline per (program, [`FeatureKey`]);
 //! [`SceneBuffers`] holds a scene's storage buffers; [`render`] and [`trace`] dispatch.
+//!
+//! Reading a result back waits for the GPU. A native program may block for it; a browser's
+//! page may not (its GPU work completes only when control returns to the event loop), so
+//! each readback has an async form ([`GpuContext::read_buffer_async`],
+//! [`tiles::render_region_async`], [`PathAccumulator::image_async`]) and the blocking one is
+//! that form run to completion ([`block_on`]), which in a browser is an error
+//! ([`GpuError::Blocking`]).
 
 pub mod instance;
 pub mod objects;
@@ -19,11 +27,14 @@ pub use tiles::{PathAccumulator, render, render_region, render_tiles};
 
 use split::{Split, SplitArray};
 use std::collections::HashMap;
+use std::future::Future;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::task::{Context, Poll, Waker};
+use std::time::Duration;
 use strahl_core::accel::gpu_bvh::MAX_PRIMS;
 use strahl_core::layout::{FlatScene, FrameParams};
+use web_time::Instant;
 use wgpu::util::DeviceExt;
 
 /// How to get a driver when no adapter is found.
@@ -69,6 +80,22 @@ pub enum GpuError {
     Lost(String),
     #[error("the scene's BVH has no GPU layout: it is deeper than the GPU's traversal stack holds ({limit} levels)")]
     TooDeep { limit: u32 },
+    #[error("{0} waits for the GPU, which a web page cannot do: use its async form")]
+    Blocking(&'static str),
+}
+
+/// Whether this build runs in a browser (wasm32, WebGPU): no blocking waits, no error scopes
+/// waited for.
+pub const IN_BROWSER: bool = cfg!(target_arch = "wasm32");
+
+/// Runs `work`, a readback's async form, to completion on this thread: native programs only.
+/// In a browser the GPU's answer arrives only after control returns to the event loop, so
+/// this fails with [`GpuError::Blocking`] naming `what` instead of waiting forever.
+pub fn block_on<T>(what: &'static str, work: impl Future<Output = Result<T, GpuError>>) -> Result<T, GpuError> {
+    if IN_BROWSER {
+        return Err(GpuError::Blocking(what));
+    }
+    pollster::block_on(work)
 }
 
 /// What the device reports outside any error scope, and its loss: recorded here instead of
@@ -221,6 +248,18 @@ impl GpuContext {
         Self::from_device(device, queue, adapter.get_info())
     }
 
+    /// [`GpuContext::new`] without blocking, as a web page must open its device: in a browser
+    /// the adapter WebGPU offers ([`instance::request_adapter_async`]), natively the one
+    /// [`GpuContext::new`] takes.
+    pub async fn new_async() -> Result<Self, GpuError> {
+        let adapter = instance::request_adapter_async().await?;
+        let (device, queue) = adapter
+            .request_device(&Self::device_descriptor(&adapter))
+            .await
+            .map_err(|e| GpuError::Device(e.to_string()))?;
+        Self::from_device(device, queue, adapter.get_info())
+    }
+
     /// Wraps a device created elsewhere (e.g. eframe's), with the limits and features it has.
     pub fn from_device(
         device: wgpu::Device,
@@ -281,8 +320,15 @@ impl GpuContext {
     /// internal error it causes is returned as the error of `what`, instead of reaching wgpu's
     /// default handler (which panics). A device lost before, or an error reported outside any
     /// scope since the last call, is returned too.
+    ///
+    /// In a browser a scope's error arrives only after control returns to the event loop, so
+    /// there no scope is pushed: errors reach the device's uncaptured-error handler, and the
+    /// next check after an await (every readback's) returns them.
     pub fn scoped<T>(&self, what: &str, f: impl FnOnce() -> T) -> Result<T, GpuError> {
         self.faults.check()?;
+        if IN_BROWSER {
+            return Ok(f());
+        }
         let scopes = [wgpu::ErrorFilter::Internal, wgpu::ErrorFilter::OutOfMemory, wgpu::ErrorFilter::Validation]
             .map(|filter| self.device.push_error_scope(filter));
         let out = f();
@@ -311,7 +357,8 @@ impl GpuContext {
         self.scoped(what, || self.queue.submit([enc.finish()]))
     }
 
-    /// Waits for the submitted work to finish; a lost device is an error.
+    /// Waits for the submitted work to finish; a lost device is an error. In a browser this
+    /// returns at once (WebGPU has no wait; the work completes on the event loop).
     pub fn wait(&self) -> Result<(), GpuError> {
         let polled = self.device.poll(wgpu::PollType::wait_indefinitely());
         self.faults.check()?;
@@ -366,11 +413,16 @@ impl GpuContext {
         let module = shaders::compose(program, key)?;
         let bindings = shaders::group_bindings(&module, 0).into();
         let label = format!("{program:?}");
+        // A browser compiles WGSL text; naga's spelling of some f32 literals is not what its
+        // compiler accepts, so the text is written as `shaders::wgsl` writes it.
+        let source = if IN_BROWSER {
+            let info = shaders::validate(program, key, &module)?;
+            wgpu::ShaderSource::Wgsl(shaders::write_wgsl(program, key, &module, &info)?.into())
+        } else {
+            wgpu::ShaderSource::Naga(std::borrow::Cow::Owned(module))
+        };
         let shader = self.scoped(&format!("the {program:?} shader for {}", key.label()), || {
-            self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(&label),
-                source: wgpu::ShaderSource::Naga(std::borrow::Cow::Owned(module)),
-            })
+            self.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(&label), source })
         })?;
         let entry = (shader, bindings);
         *slot = Some(entry.clone());
@@ -516,15 +568,28 @@ impl GpuContext {
         })
     }
 
-    /// Copies the first `count` elements of `src`, an array of `T`, to the host (blocking).
-    /// The bytes land in a `Vec<T>`, aligned for `T`; `count` may be 0.
+    /// Copies the first `count` elements of `src`, an array of `T`, to the host (blocking: not
+    /// in a browser, see [`GpuContext::read_pod_async`]). The bytes land in a `Vec<T>`,
+    /// aligned for `T`; `count` may be 0.
     pub fn read_pod<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>, GpuError> {
-        let bytes = self.read_buffer(src, (count * std::mem::size_of::<T>()) as u64)?;
+        block_on("reading back a result", self.read_pod_async(src, count))
+    }
+
+    /// [`GpuContext::read_pod`] without blocking.
+    pub async fn read_pod_async<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>, GpuError> {
+        let bytes = self.read_buffer_async(src, (count * std::mem::size_of::<T>()) as u64).await?;
         Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
 
-    /// Copies `size` bytes of `src` to the host (blocking); nothing for `size` 0.
+    /// Copies `size` bytes of `src` to the host (blocking: not in a browser); nothing for
+    /// `size` 0.
     pub fn read_buffer(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
+        block_on("reading back a result", self.read_buffer_async(src, size))
+    }
+
+    /// [`GpuContext::read_buffer`] without blocking: the copy is submitted, and the future
+    /// completes when the buffer is mapped (natively during [`GpuContext::wait`], so at once).
+    pub async fn read_buffer_async(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
         if size == 0 {
             return Ok(Vec::new());
         }
@@ -540,15 +605,52 @@ impl GpuContext {
         enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
         self.submit("reading back a result", enc)?;
         let slice = staging.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
+        let mapped = Mapping::default();
+        let done = mapped.clone();
+        slice.map_async(wgpu::MapMode::Read, move |r| done.complete(r));
         self.wait()?;
-        rx.recv().map_err(|e| GpuError::Wgpu(e.to_string()))?.map_err(|e| GpuError::Wgpu(e.to_string()))?;
+        let result = mapped.await;
+        // In a browser, errors of the work before arrive by now (GpuContext::scoped).
+        self.faults.check()?;
+        result.map_err(|e| GpuError::Wgpu(e.to_string()))?;
         let data = slice.get_mapped_range().map_err(|e| GpuError::Wgpu(e.to_string()))?.to_vec();
         staging.unmap();
         Ok(data)
+    }
+}
+
+/// The answer of one `map_async`, as a future: completed by the map callback, awaited by the
+/// readback.
+#[derive(Clone, Default)]
+struct Mapping(Arc<Mutex<MappingState>>);
+
+#[derive(Default)]
+struct MappingState {
+    result: Option<Result<(), wgpu::BufferAsyncError>>,
+    waker: Option<Waker>,
+}
+
+impl Mapping {
+    fn complete(&self, result: Result<(), wgpu::BufferAsyncError>) {
+        let mut state = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        state.result = Some(result);
+        if let Some(w) = state.waker.take() {
+            w.wake();
+        }
+    }
+}
+
+impl Future for Mapping {
+    type Output = Result<(), wgpu::BufferAsyncError>;
+    fn poll(self: std::pin::Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Self::Output> {
+        let mut state = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        match state.result.take() {
+            Some(r) => Poll::Ready(r),
+            None => {
+                state.waker = Some(cx.waker().clone());
+                Poll::Pending
+            }
+        }
     }
 }
 

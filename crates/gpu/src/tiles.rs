@@ -4,12 +4,15 @@
 
 use super::timing::{RenderStats, Timer};
 use super::wavefront::Wavefront;
-use super::{CachedPipeline, FeatureKey, GpuContext, GpuError, PathKernels, Program, SceneBuffers, stage_frame};
+use super::{
+    CachedPipeline, FeatureKey, GpuContext, GpuError, PathKernels, Program, SceneBuffers, block_on, stage_frame,
+};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use strahl_core::image::{Image, Region};
 use strahl_core::layout::{FRAME_ACCUMULATE, FrameParams};
 use strahl_core::scene::RenderMode;
+use web_time::Instant;
 
 /// Tile side in pixels.
 pub const TILE: u32 = 128;
@@ -51,17 +54,44 @@ pub fn render_region(
     region: Region,
     progress: &dyn Fn(u64, u64),
 ) -> Result<(Image, RenderStats), GpuError> {
+    block_on("rendering", render_region_async(ctx, scene, frame, mode, key, region, progress))
+}
+
+/// [`render_region`] without blocking, as a web page renders. (The wavefront tracer, which
+/// only old lavapipe runs by default, blocks.)
+pub async fn render_region_async(
+    ctx: &GpuContext,
+    scene: &SceneBuffers,
+    frame: &FrameParams,
+    mode: RenderMode,
+    key: FeatureKey,
+    region: Region,
+    progress: &dyn Fn(u64, u64),
+) -> Result<(Image, RenderStats), GpuError> {
     assert!(scene.runs_with(key), "variant {} cannot render a scene needing {}", key.label(), scene.key.label());
     if mode == RenderMode::Path && ctx.path_kernels(scene)? == PathKernels::Wavefront {
         let wf = Wavefront::for_region(ctx, scene.clone(), key, *frame, region)?;
         return wf.render(ctx, progress);
     }
-    render_tiles(ctx, scene, frame, mode, key, region, progress)
+    render_tiles_async(ctx, scene, frame, mode, key, region, progress).await
 }
 
 /// [`render_region`] by tiles: one dispatch of the mode's single kernel (for path tracing the
 /// megakernel) per tile and sample pass.
 pub fn render_tiles(
+    ctx: &GpuContext,
+    scene: &SceneBuffers,
+    frame: &FrameParams,
+    mode: RenderMode,
+    key: FeatureKey,
+    region: Region,
+    progress: &dyn Fn(u64, u64),
+) -> Result<(Image, RenderStats), GpuError> {
+    block_on("rendering", render_tiles_async(ctx, scene, frame, mode, key, region, progress))
+}
+
+/// [`render_tiles`] without blocking.
+pub async fn render_tiles_async(
     ctx: &GpuContext,
     scene: &SceneBuffers,
     frame: &FrameParams,
@@ -133,7 +163,7 @@ pub fn render_tiles(
             }
             ctx.submit("a sample pass", enc)?;
             if let Some(t) = &timer {
-                gpu_ns += t.read(ctx, n_tiles)?;
+                gpu_ns += t.read_async(ctx, n_tiles).await?;
             }
             if step == 0 {
                 // Wait for the first pass alone: where the driver compiles at the first
@@ -147,7 +177,7 @@ pub fn render_tiles(
             progress(step, total_steps);
         }
         let first = region.x0 as usize;
-        let px: Vec<[f32; 4]> = ctx.read_pod(&output, first + rows as usize * w as usize)?;
+        let px: Vec<[f32; 4]> = ctx.read_pod_async(&output, first + rows as usize * w as usize).await?;
         let spp = frame.spp as f32;
         let at = (row0 - region.y0) as usize * w as usize;
         for (i, p) in px[first..].iter().enumerate() {
@@ -273,6 +303,11 @@ impl PathAccumulator {
 
     /// The mean of the samples so far (black before the first).
     pub fn image(&self) -> Result<Image, GpuError> {
+        block_on("reading the image", self.image_async())
+    }
+
+    /// [`PathAccumulator::image`] without blocking.
+    pub async fn image_async(&self) -> Result<Image, GpuError> {
         let mut img = Image::new(self.frame.width, self.frame.height);
         if self.samples == 0 {
             return Ok(img);
@@ -281,7 +316,7 @@ impl PathAccumulator {
             AccumulatorKernels::Megakernel { output, .. } => output,
             AccumulatorKernels::Wavefront(wf) => wf.output(),
         };
-        let px: Vec<[f32; 4]> = self.ctx.read_pod(output, img.pixels.len())?;
+        let px: Vec<[f32; 4]> = self.ctx.read_pod_async(output, img.pixels.len()).await?;
         let k = 1.0 / self.samples as f32;
         for (p, s) in img.pixels.iter_mut().zip(px) {
             *p = [s[0] * k, s[1] * k, s[2] * k];

@@ -66,14 +66,24 @@ impl Timer {
         enc.resolve_query_set(&self.set, 0..2 * passes, &self.resolve, 0);
     }
 
-    /// Nanoseconds of each of the `passes` dispatches just submitted.
+    /// Nanoseconds of each of the `passes` dispatches just submitted (blocking).
     pub fn read_each(&self, ctx: &GpuContext, passes: u32) -> Result<Vec<f64>, GpuError> {
-        let ts: Vec<u64> = ctx.read_pod(&self.resolve, 2 * passes as usize)?;
+        super::block_on("reading timestamps", self.read_each_async(ctx, passes))
+    }
+
+    /// [`Timer::read_each`] without blocking.
+    pub async fn read_each_async(&self, ctx: &GpuContext, passes: u32) -> Result<Vec<f64>, GpuError> {
+        let ts: Vec<u64> = ctx.read_pod_async(&self.resolve, 2 * passes as usize).await?;
         Ok(ts.chunks(2).map(|p| p[1].saturating_sub(p[0]) as f64 * self.period_ns).collect())
     }
 
-    /// Total nanoseconds of the `passes` dispatches just submitted.
+    /// Total nanoseconds of the `passes` dispatches just submitted (blocking).
     pub fn read(&self, ctx: &GpuContext, passes: u32) -> Result<f64, GpuError> {
         Ok(self.read_each(ctx, passes)?.iter().sum())
+    }
+
+    /// [`Timer::read`] without blocking.
+    pub async fn read_async(&self, ctx: &GpuContext, passes: u32) -> Result<f64, GpuError> {
+        Ok(self.read_each_async(ctx, passes).await?.iter().sum())
     }
 }

@@ -1,7 +1,7 @@
 //! Ray queries on the GPU (`strahl trace --backend gpu`), in f32, in batches that fit the
 //! adapter's buffer limits and dispatch size.
 
-use super::{CachedPipeline, GpuContext, GpuError, Program, SceneBuffers};
+use super::{CachedPipeline, GpuContext, GpuError, Program, SceneBuffers, block_on};
 use strahl_core::geometry::Part;
 use strahl_core::layout::{FrameParams, GpuQueryHit, GpuQueryRay, QUERY_ENTER, QUERY_FOUND};
 use strahl_core::math::V3;
@@ -42,6 +42,16 @@ pub fn trace(
     rays: &[RayQuery],
     all: bool,
 ) -> Result<Vec<Vec<Hit<f32>>>, GpuError> {
+    block_on("a ray query", trace_async(ctx, scene, rays, all))
+}
+
+/// [`trace`] without blocking, as a web page queries.
+pub async fn trace_async(
+    ctx: &GpuContext,
+    scene: &SceneBuffers,
+    rays: &[RayQuery],
+    all: bool,
+) -> Result<Vec<Vec<Hit<f32>>>, GpuError> {
     let key = scene.key;
     let entry = if all { "trace_count" } else { "trace_nearest" };
     let first = ctx.pipeline(Program::Trace, key, entry)?;
@@ -62,7 +72,7 @@ pub fn trace(
             let counts_buf = rw_buffer(ctx, "hit counts", n * 4)?;
             let dummy = rw_buffer(ctx, "no hits", HIT_BYTES)?;
             dispatch(ctx, &first, scene, &ray_buf, &dummy, &counts_buf, n)?;
-            let counts: Vec<u32> = ctx.read_pod(&counts_buf, n as usize)?;
+            let counts: Vec<u32> = ctx.read_pod_async(&counts_buf, n as usize).await?;
             let total: u64 = counts.iter().map(|&c| c as u64).sum();
             if total * HIT_BYTES > limit {
                 if batch.len() == 1 {
@@ -82,7 +92,7 @@ pub fn trace(
             ctx.queue.write_buffer(&counts_buf, 0, bytemuck::cast_slice(&offsets));
             let hits_buf = rw_buffer(ctx, "hits", (total * HIT_BYTES).max(HIT_BYTES))?;
             dispatch(ctx, write_all, scene, &ray_buf, &hits_buf, &counts_buf, n)?;
-            let hits: Vec<GpuQueryHit> = ctx.read_pod(&hits_buf, total as usize)?;
+            let hits: Vec<GpuQueryHit> = ctx.read_pod_async(&hits_buf, total as usize).await?;
             for (i, &c) in counts.iter().enumerate() {
                 let o = offsets[i] as usize;
                 out.push(hits[o..o + c as usize].iter().map(from_gpu).collect());
@@ -91,7 +101,7 @@ pub fn trace(
             let hits_buf = rw_buffer(ctx, "hits", n * HIT_BYTES)?;
             let dummy = rw_buffer(ctx, "no offsets", 4)?;
             dispatch(ctx, &first, scene, &ray_buf, &hits_buf, &dummy, n)?;
-            let hits: Vec<GpuQueryHit> = ctx.read_pod(&hits_buf, n as usize)?;
+            let hits: Vec<GpuQueryHit> = ctx.read_pod_async(&hits_buf, n as usize).await?;
             out.extend(hits.iter().map(|h| if h.flags & QUERY_FOUND != 0 { vec![from_gpu(h)] } else { Vec::new() }));
         }
     }

@@ -12,9 +12,10 @@ use super::stage_frame;
 use super::timing::{RenderStats, Timer};
 use super::{CachedPipeline, FeatureKey, GpuContext, GpuError, Program, SceneBuffers};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use strahl_core::image::{Image, Region};
 use strahl_core::layout::{FRAME_ACCUMULATE, FrameParams};
+use web_time::Instant;
 
 /// Invocations of a wavefront workgroup (`WAVEFRONT_WORKGROUP` in the shader).
 pub const WORKGROUP: u32 = 64;

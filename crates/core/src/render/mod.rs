@@ -23,7 +23,8 @@ use crate::accel::{Bvh, WideBvh};
 use crate::layout::{FlatScene, FrameParams};
 use crate::primitives::Primitives;
 use crate::scene::Scene;
-use std::time::{Duration, Instant};
+use std::time::Duration;
+use web_time::Instant;
 
 /// A scene made ready for rendering: flattened, with its BVH built (the binary tree the GPU
 /// reads, and its 8-wide form the CPU walks).

@@ -18,7 +18,7 @@ pub use texture::Texture;
 
 use crate::geometry::{Cylinder, Plane, Sphere, Triangle};
 use crate::math::V3;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
@@ -335,6 +335,18 @@ impl Scene {
     pub fn load_with(path: impl Into<PathBuf>, options: &LoadOptions) -> Result<Scene, SceneError> {
         let path = path.into();
         if gltf::is_gltf_path(&path) { gltf::load_scene(&path, options) } else { file::load(&path) }
+    }
+
+    /// [`Scene::load_with`] of a file's contents, `bytes`, as a web page has them: a glTF
+    /// file where `path` (which names it in messages; files it refers to are looked up beside
+    /// it) ends in `.gltf` or `.glb`, else a TOML scene file.
+    pub fn from_bytes(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<Scene, SceneError> {
+        if gltf::is_gltf_path(path) {
+            return gltf::load_scene_bytes(path, bytes, options);
+        }
+        let src = crate::input::read_text_from(bytes, file::MAX_SCENE_FILE_BYTES)
+            .map_err(|e| SceneError::Io { path: path.to_path_buf(), message: e.to_string() })?;
+        file::parse(&src, path, path.parent().unwrap_or(Path::new("")))
     }
 
     /// Total triangle count over triangles, polygons and meshes.

@@ -103,6 +103,22 @@ pub struct Import {
 pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
     let err = |message: String| SceneError::Gltf { path: path.to_path_buf(), message };
     let imp = import(path, &Transform::default(), super::mesh::MAX_MESH_TRIANGLES).map_err(err)?;
+    scene_of(path, imp, options)
+}
+
+/// [`load_scene`] of a file's bytes, as a web page has them (dropped, or fetched from a URL):
+/// a `.glb`, or a `.gltf` whose buffers and images are `data:` URIs; `path` names it in
+/// messages, and other URIs are looked up beside it.
+pub fn load_scene_bytes(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<Scene, SceneError> {
+    let err = |message: String| SceneError::Gltf { path: path.to_path_buf(), message };
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let imp = import_bytes(bytes, dir, &Transform::default(), super::mesh::MAX_MESH_TRIANGLES).map_err(err)?;
+    scene_of(path, imp, options)
+}
+
+/// The scene of a glTF file given on its own, `imp` its contents ([`load_scene`]).
+fn scene_of(path: &Path, imp: Import, options: &LoadOptions) -> Result<Scene, SceneError> {
+    let err = |message: String| SceneError::Gltf { path: path.to_path_buf(), message };
     let placed = match options.camera {
         Some(n) => Some(imp.cameras.iter().find(|c| c.index == n).ok_or_else(|| {
             let list: Vec<String> = imp
@@ -185,10 +201,22 @@ type Res<T> = Result<T, String>;
 /// space); at most `triangle_limit` triangles, counted from the accessors before any is read.
 /// Errors read `GLTF_PATH: message`.
 pub fn import(path: &Path, placement: &Transform, triangle_limit: usize) -> Res<Import> {
+    let bytes = crate::input::read_bytes(path, MAX_GLTF_FILE_BYTES).map_err(|e| match e {
+        crate::input::ReadError::Io(e) => format!("cannot open: {e}"),
+        e => format!("cannot read: {e}"),
+    })?;
+    import_bytes(&bytes, path.parent().unwrap_or(Path::new("")), placement, triangle_limit)
+}
+
+/// [`import`] of a file's bytes; relative URIs are looked up in `dir`.
+pub fn import_bytes(bytes: &[u8], dir: &Path, placement: &Transform, triangle_limit: usize) -> Res<Import> {
+    if bytes.len() as u64 > MAX_GLTF_FILE_BYTES {
+        return Err(format!("cannot read: {}", crate::input::ReadError::TooLarge { limit: MAX_GLTF_FILE_BYTES }));
+    }
     // The crate's validation indexes some arrays unchecked (a primitive's attribute naming a
     // missing accessor can panic in it): a panic there, or in what it let through, is an error
     // about the file too.
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| import_checked(path, placement, triangle_limit)))
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| import_checked(bytes, dir, placement, triangle_limit)))
         .unwrap_or_else(|payload| {
             let what = payload
                 .downcast_ref::<String>()
@@ -199,15 +227,10 @@ pub fn import(path: &Path, placement: &Transform, triangle_limit: usize) -> Res<
         })
 }
 
-fn import_checked(path: &Path, placement: &Transform, triangle_limit: usize) -> Res<Import> {
-    let bytes = crate::input::read_bytes(path, MAX_GLTF_FILE_BYTES).map_err(|e| match e {
-        crate::input::ReadError::Io(e) => format!("cannot open: {e}"),
-        e => format!("cannot read: {e}"),
-    })?;
-    let (gltf, leniencies) = parse(&bytes)?;
-    drop(bytes);
+fn import_checked(bytes: &[u8], dir: &Path, placement: &Transform, triangle_limit: usize) -> Res<Import> {
+    let (gltf, leniencies) = parse(bytes)?;
     validate(gltf.document.as_json())?;
-    let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
+    let dir = dir.to_path_buf();
     let mut reader = Reader {
         doc: &gltf.document,
         buffers: Vec::new(),

@@ -1,6 +1,6 @@
 //! The variants as WGSL text for browsers ([`crate::shaders::wgsl`]): naga reads the text
 //! with exact literals as it reads its own, and Chromium's compiler, Tint, compiles every
-//! variant that WebGPU can run (`tools/tint-check/`, in headless Chromium).
+//! variant that WebGPU can run (`tools/browser/`, in headless Chromium).
 
 use super::*;
 use crate::shaders::{exact_f32_literals, write_wgsl};
@@ -88,7 +88,7 @@ struct Written {
 
 /// Every variant [`keys_to_translate`] names that WebGPU can run (not LOAD64: WebGPU has no
 /// 64-bit integers), written as WGSL by [`crate::shaders::wgsl`], compiles in Tint, Chromium's
-/// WGSL compiler (headless Chromium, WebGPU on SwiftShader, through `tools/tint-check/`):
+/// WGSL compiler (headless Chromium, WebGPU on SwiftShader, through `tools/browser/`):
 /// no error in `getCompilationInfo()` (warnings are printed), and every compute pipeline
 /// (`layout: 'auto'`) builds whose entry point uses (by naga's count) no more storage buffers
 /// than the device offers per stage, and every one over that count is refused. Those are
@@ -100,7 +100,7 @@ struct Written {
 fn every_variant_compiles_in_tint() {
     use rayon::prelude::*;
     let started = std::time::Instant::now();
-    let package = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/tint-check");
+    let package = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/browser");
     let Some(node) = on_path("node") else {
         return skip("node not found: install the Debian packages nodejs and npm (.ci/run does)");
     };
@@ -114,7 +114,7 @@ fn every_variant_compiles_in_tint() {
     if !package.join("node_modules/playwright-core").is_dir() {
         return skip(&format!("playwright-core is not installed: run npm ci in {}", package.display()));
     }
-    // STRAHL_TINT_DIR=DIR keeps the files there, to run tools/tint-check/check.js on by hand.
+    // STRAHL_TINT_DIR=DIR keeps the files there, to run tools/browser/tint.js on by hand.
     let temporary = tempfile::tempdir().unwrap();
     let dir = std::env::var_os("STRAHL_TINT_DIR").map_or_else(|| temporary.path().to_path_buf(), PathBuf::from);
     std::fs::create_dir_all(&dir).unwrap();
@@ -144,7 +144,7 @@ fn every_variant_compiles_in_tint() {
     let report_dir = tempfile::tempdir().unwrap();
     let (stdout, stderr) = (report_dir.path().join("report.json"), report_dir.path().join("stderr"));
     let mut child = std::process::Command::new(node)
-        .arg(package.join("check.js"))
+        .arg(package.join("tint.js"))
         .args(["--chromium".as_ref(), chromium.as_os_str()])
         .arg(&dir)
         .stdout(std::fs::File::create(&stdout).unwrap())
@@ -159,12 +159,12 @@ fn every_variant_compiles_in_tint() {
         if std::time::Instant::now() > deadline {
             child.kill().unwrap();
             child.wait().unwrap();
-            panic!("tools/tint-check/check.js ran for 15 minutes: {}", std::fs::read_to_string(&stderr).unwrap());
+            panic!("tools/browser/tint.js ran for 15 minutes: {}", std::fs::read_to_string(&stderr).unwrap());
         }
         std::thread::sleep(std::time::Duration::from_millis(100));
     };
     let messages = std::fs::read_to_string(&stderr).unwrap();
-    assert!(status.success(), "tools/tint-check/check.js failed ({status}): {messages}");
+    assert!(status.success(), "tools/browser/tint.js failed ({status}): {messages}");
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&stdout).unwrap()).expect("the check's JSON report");
     let limit = report["limits"]["maxStorageBuffersPerShaderStage"].as_u64().expect("the device's limit") as usize;

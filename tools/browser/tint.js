@@ -2,7 +2,7 @@
 // Compiles every WGSL file of a folder with Tint, Chromium's WGSL compiler, in headless
 // Chromium's WebGPU (SwiftShader), and prints a JSON report on standard output.
 //
-//   node tools/tint-check/check.js [--modules-only] [--chromium PATH] DIR
+//   node tools/browser/tint.js [--modules-only] [--chromium PATH] DIR
 //
 // In one browser and one page, for each DIR/*.wgsl: device.createShaderModule and its
 // getCompilationInfo() (errors and warnings, located), then one compute pipeline per
@@ -24,9 +24,10 @@ const fs = require('fs');
 const http = require('http');
 const os = require('os');
 const path = require('path');
+const { CHROMIUM_FLAGS, playwright } = require('./chromium');
 
 function usage(message) {
-  process.stderr.write(`tint-check: ${message}\nusage: node check.js [--modules-only] [--chromium PATH] DIR\n`);
+  process.stderr.write(`tint.js: ${message}\nusage: node tint.js [--modules-only] [--chromium PATH] DIR\n`);
   process.exit(2);
 }
 
@@ -53,24 +54,6 @@ function computeEntryPoints(text) {
   while ((m = re.exec(text)) !== null) found.push(m[1]);
   return found;
 }
-
-// Chromium's flags for a WebGPU adapter headless (SwiftShader, since no GPU is assumed), on
-// a machine whose network may be closed: nothing is fetched in the background.
-const CHROMIUM_FLAGS = [
-  '--headless=new',
-  '--no-sandbox',
-  '--enable-unsafe-webgpu',
-  '--enable-gpu',
-  '--use-angle=swiftshader',
-  '--enable-features=Vulkan',
-  '--use-vulkan=swiftshader',
-  '--enable-unsafe-swiftshader',
-  '--disable-background-networking',
-  '--disable-component-update',
-  '--disable-sync',
-  '--no-first-run',
-  '--disable-quic',
-];
 
 // What runs in the page: every module, one after another. `modules` is [{name, entryPoints}];
 // the texts are fetched from the page's own origin.
@@ -154,16 +137,10 @@ async function main() {
   }
   const modules = names.map((name) => ({ name, entryPoints: computeEntryPoints(fs.readFileSync(path.join(dir, name), 'utf8')) }));
   if (!fs.existsSync(args.chromium)) {
-    process.stderr.write(`tint-check: no Chromium at ${args.chromium} (Debian: apt-get install chromium)\n`);
+    process.stderr.write(`tint.js: no Chromium at ${args.chromium} (Debian: apt-get install chromium)\n`);
     process.exit(3);
   }
-  let chromium;
-  try {
-    ({ chromium } = require('playwright-core'));
-  } catch (e) {
-    process.stderr.write(`tint-check: playwright-core is missing: run npm ci in ${__dirname}\n`);
-    process.exit(3);
-  }
+  const { chromium } = playwright('tint.js');
 
   // WebGPU needs a secure context: a page served from 127.0.0.1 is one.
   const server = http.createServer((req, res) => {
@@ -180,12 +157,12 @@ async function main() {
       return;
     }
     res.writeHead(200, { 'content-type': 'text/html; charset=utf-8' });
-    res.end('<!doctype html><title>tint-check</title>');
+    res.end('<!doctype html><title>tint.js</title>');
   });
   await new Promise((resolve) => server.listen(0, '127.0.0.1', resolve));
   const origin = `http://127.0.0.1:${server.address().port}/`;
 
-  const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'tint-check-'));
+  const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'strahl-tint-'));
   const started = Date.now();
   let context;
   let status = 0;
@@ -202,7 +179,7 @@ async function main() {
     await page.goto(origin);
     const report = await page.evaluate(checkInPage, { modules, modulesOnly: args.modulesOnly });
     if (report.fatal) {
-      process.stderr.write(`tint-check: ${report.fatal}\n`);
+      process.stderr.write(`tint.js: ${report.fatal}\n`);
       status = 3;
     } else {
       report.browser = context.browser() ? context.browser().version() : null;
@@ -211,7 +188,7 @@ async function main() {
       process.stdout.write(`${JSON.stringify(report, null, 1)}\n`);
     }
   } catch (e) {
-    process.stderr.write(`tint-check: ${e.message}\n`);
+    process.stderr.write(`tint.js: ${e.message}\n`);
     status = 3;
   } finally {
     if (context) await context.close().catch(() => {});
