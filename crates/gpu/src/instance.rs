@@ -164,8 +164,8 @@ pub async fn request_adapter_async() -> Result<wgpu::Adapter, GpuError> {
         wgpu::RequestAdapterOptions { power_preference: wgpu::PowerPreference::HighPerformance, ..Default::default() };
     instance.request_adapter(&options).await.map_err(|e| {
         GpuError::Device(format!(
-            "this browser offers no WebGPU adapter ({e}): it needs WebGPU enabled (Chrome 113 or later, \
-             Firefox 141 or later, Safari 26 or later)"
+            "this browser offers no WebGPU adapter ({e}): strahl needs a browser with WebGPU (Chrome or \
+             Edge 113 and later, Safari 26, Firefox 141 on Windows)"
         ))
     })
 }

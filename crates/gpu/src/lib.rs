@@ -593,6 +593,14 @@ impl GpuContext {
         if size == 0 {
             return Ok(Vec::new());
         }
+        let staging = self.copy_for_reading(src, size)?;
+        self.map_read(staging).await
+    }
+
+    /// Submits a copy of the first `size` bytes (not 0) of `src` into a new buffer the host can
+    /// map ([`GpuContext::map_read`]): the copy sees the work submitted before it, whatever is
+    /// submitted while the host waits.
+    pub(crate) fn copy_for_reading(&self, src: &wgpu::Buffer, size: u64) -> Result<wgpu::Buffer, GpuError> {
         let staging = self.scoped("the readback buffer", || {
             self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("readback"),
@@ -604,6 +612,12 @@ impl GpuContext {
         let mut enc = self.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
         self.submit("reading back a result", enc)?;
+        Ok(staging)
+    }
+
+    /// The bytes of `staging`, a buffer of [`GpuContext::copy_for_reading`], once the GPU has
+    /// written them.
+    pub(crate) async fn map_read(&self, staging: wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
         let slice = staging.slice(..);
         let mapped = Mapping::default();
         let done = mapped.clone();

@@ -306,22 +306,28 @@ impl PathAccumulator {
         block_on("reading the image", self.image_async())
     }
 
-    /// [`PathAccumulator::image`] without blocking.
-    pub async fn image_async(&self) -> Result<Image, GpuError> {
-        let mut img = Image::new(self.frame.width, self.frame.height);
-        if self.samples == 0 {
-            return Ok(img);
-        }
+    /// [`PathAccumulator::image`] without blocking. The sums are copied when this is called
+    /// and the future holds the copy, not `self`: samples added while it waits do not reach
+    /// it.
+    pub fn image_async(&self) -> impl std::future::Future<Output = Result<Image, GpuError>> + 'static {
+        let ctx = self.ctx.clone();
+        let (width, height, samples) = (self.frame.width, self.frame.height, self.samples);
         let output = match &self.kernels {
             AccumulatorKernels::Megakernel { output, .. } => output,
             AccumulatorKernels::Wavefront(wf) => wf.output(),
         };
-        let px: Vec<[f32; 4]> = self.ctx.read_pod_async(output, img.pixels.len()).await?;
-        let k = 1.0 / self.samples as f32;
-        for (p, s) in img.pixels.iter_mut().zip(px) {
-            *p = [s[0] * k, s[1] * k, s[2] * k];
+        let bytes = width as u64 * height as u64 * PIXEL_BYTES;
+        let copy = (samples > 0).then(|| ctx.copy_for_reading(output, bytes));
+        async move {
+            let mut img = Image::new(width, height);
+            let Some(copy) = copy else { return Ok(img) };
+            let px: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&ctx.map_read(copy?).await?);
+            let k = 1.0 / samples as f32;
+            for (p, s) in img.pixels.iter_mut().zip(px) {
+                *p = [s[0] * k, s[1] * k, s[2] * k];
+            }
+            Ok(img)
         }
-        Ok(img)
     }
 }
 

@@ -65,8 +65,11 @@ impl Renderer {
     /// Opens the adapter and device WebGPU offers; fails where the browser has no WebGPU or
     /// the device binds fewer storage buffers than strahl needs.
     pub async fn open() -> Result<Renderer, JsValue> {
-        let ctx = GpuContext::new_async().await.map_err(js)?;
-        Ok(Renderer { ctx: Arc::new(ctx) })
+        // wgpu's web types are neither Send nor Sync; the Arc is for PathAccumulator, which
+        // takes one (a page has one thread).
+        #[allow(clippy::arc_with_non_send_sync)]
+        let ctx = Arc::new(GpuContext::new_async().await.map_err(js)?);
+        Ok(Renderer { ctx })
     }
 
     /// The adapter: name, backend, driver.
@@ -246,8 +249,7 @@ pub struct Progressive {
 impl Progressive {
     /// Submits `n` more sample passes (returns at once; the GPU works on them meanwhile).
     pub fn add_samples(&self, n: u32) -> Result<(), JsValue> {
-        let mut acc = self.acc.try_borrow_mut().map_err(|_| js("the image is being read: await rgba() first"))?;
-        acc.add_samples(n).map_err(js)
+        self.acc.borrow_mut().add_samples(n).map_err(js)
     }
 
     /// Samples per pixel submitted so far.
@@ -258,16 +260,16 @@ impl Progressive {
 
     /// Starts again from zero samples.
     pub fn reset(&self) -> Result<(), JsValue> {
-        self.acc.try_borrow_mut().map_err(|_| js("the image is being read: await rgba() first"))?.reset();
+        self.acc.borrow_mut().reset();
         Ok(())
     }
 
-    /// A Promise of the mean so far as 8-bit sRGB RGBA (a Uint8Array).
+    /// A Promise of the mean of the samples submitted so far, as 8-bit sRGB RGBA (a
+    /// Uint8Array).
     pub fn rgba(&self) -> js_sys::Promise {
-        let acc = self.acc.clone();
+        let read = self.acc.borrow().image_async();
         wasm_bindgen_futures::future_to_promise(async move {
-            let acc = acc.try_borrow().map_err(|_| js("samples are being added"))?;
-            let image = acc.image_async().await.map_err(js)?;
+            let image = read.await.map_err(js)?;
             Ok(js_sys::Uint8Array::from(session::rgba8(&image).as_slice()).into())
         })
     }

@@ -148,7 +148,7 @@ pub fn progressive(
 /// Rays as a script passes them: 8 numbers per ray in the columns of `strahl trace`'s CSV
 /// (ox, oy, oz, dx, dy, dz, tmin, tmax), checked as the CSV's rows are; errors name the ray.
 pub fn rays(values: &[f64]) -> Result<Vec<RayQuery>, String> {
-    if values.len() % 8 != 0 {
+    if !values.len().is_multiple_of(8) {
         return Err(format!(
             "rays: {} numbers, not a multiple of 8 (ox, oy, oz, dx, dy, dz, tmin, tmax)",
             values.len()
