@@ -26,20 +26,14 @@
 
 const fs = require('fs');
 const http = require('http');
-const os = require('os');
 const path = require('path');
-const { CHROMIUM_FLAGS, playwright } = require('./chromium');
+const { reportFromPage } = require('./chromium');
 
 const USAGE = 'usage: node page.js render DIR JOBS OUTDIR | screenshot DIR OUT.png [--scene FILE] [--samples N]';
 
 function usage(message) {
   process.stderr.write(`page.js: ${message}\n${USAGE}\n`);
   process.exit(2);
-}
-
-function fail(message) {
-  process.stderr.write(`page.js: ${message}\n`);
-  process.exit(3);
 }
 
 function parseArgs(argv) {
@@ -147,63 +141,33 @@ async function main() {
     }
     fs.mkdirSync(args.rest[2], { recursive: true });
   }
-  if (!fs.existsSync(args.chromium)) fail(`no Chromium at ${args.chromium} (Debian: apt-get install chromium)`);
-  const { chromium } = playwright('page.js');
   const { server, origin } = await serve(dir, extra);
-  const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'strahl-page-'));
-  const started = Date.now();
-  let context;
-  let status = 0;
-  try {
-    context = await chromium.launchPersistentContext(profile, {
-      executablePath: args.chromium,
-      headless: true,
-      args: CHROMIUM_FLAGS,
-      ignoreDefaultArgs: ['--headless'],
-      viewport: { width: 1000, height: 560 },
-    });
-    const page = context.pages()[0] || (await context.newPage());
-    const pageErrors = [];
-    page.on('pageerror', (e) => pageErrors.push(e.message));
-    page.on('console', (m) => { if (m.type() === 'error') pageErrors.push(m.text()); });
+  await reportFromPage({ tool: 'page.js', executable: args.chromium, server, viewport: { width: 1000, height: 560 } }, async (page) => {
     const query = extra ? `?scene=models/${encodeURIComponent(path.basename(extra))}` : '';
     await page.goto(`${origin}index.html${query}`);
     await page.waitForFunction(() => window.strahl !== undefined, null, { timeout: 60000 });
-    let report;
-    if (args.command === 'render') {
-      report = await page.evaluate(renderInPage, jobs);
-      if (report.fatal) throw new Error(report.fatal);
-      for (const job of report.jobs) {
-        if (job.columns !== undefined) {
-          fs.writeFileSync(path.join(args.rest[2], `${job.name}.json`), JSON.stringify(job.columns));
-          delete job.columns;
-        }
-        if (job.rgba === undefined) continue;
-        fs.writeFileSync(path.join(args.rest[2], `${job.name}.rgba`), Buffer.from(job.rgba, 'base64'));
-        delete job.rgba;
-      }
-    } else {
+    if (args.command === 'screenshot') {
       await page.waitForFunction(
         (n) => { const s = window.strahl.status(); return s.error || s.samples >= n; },
         args.samples,
         { timeout: 600000, polling: 250 },
       );
-      report = { status: await page.evaluate(() => window.strahl.status()) };
+      const report = { status: await page.evaluate(() => window.strahl.status()) };
       await page.screenshot({ path: args.rest[1] });
+      return report;
     }
-    report.browser = context.browser() ? context.browser().version() : null;
-    report.pageErrors = pageErrors;
-    report.totalMs = Date.now() - started;
-    process.stdout.write(`${JSON.stringify(report, null, 1)}\n`);
-  } catch (e) {
-    process.stderr.write(`page.js: ${e.message}\n`);
-    status = 3;
-  } finally {
-    if (context) await context.close().catch(() => {});
-    server.close();
-    fs.rmSync(profile, { recursive: true, force: true });
-  }
-  process.exit(status);
+    const report = await page.evaluate(renderInPage, jobs);
+    for (const job of report.jobs || []) {
+      if (job.columns !== undefined) {
+        fs.writeFileSync(path.join(args.rest[2], `${job.name}.json`), JSON.stringify(job.columns));
+        delete job.columns;
+      }
+      if (job.rgba === undefined) continue;
+      fs.writeFileSync(path.join(args.rest[2], `${job.name}.rgba`), Buffer.from(job.rgba, 'base64'));
+      delete job.rgba;
+    }
+    return report;
+  });
 }
 
 main();

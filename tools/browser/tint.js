@@ -22,9 +22,8 @@
 
 const fs = require('fs');
 const http = require('http');
-const os = require('os');
 const path = require('path');
-const { CHROMIUM_FLAGS, playwright } = require('./chromium');
+const { reportFromPage } = require('./chromium');
 
 function usage(message) {
   process.stderr.write(`tint.js: ${message}\nusage: node tint.js [--modules-only] [--chromium PATH] DIR\n`);
@@ -136,11 +135,6 @@ async function main() {
     usage(`cannot read ${dir}: ${e.message}`);
   }
   const modules = names.map((name) => ({ name, entryPoints: computeEntryPoints(fs.readFileSync(path.join(dir, name), 'utf8')) }));
-  if (!fs.existsSync(args.chromium)) {
-    process.stderr.write(`tint.js: no Chromium at ${args.chromium} (Debian: apt-get install chromium)\n`);
-    process.exit(3);
-  }
-  const { chromium } = playwright('tint.js');
 
   // WebGPU needs a secure context: a page served from 127.0.0.1 is one.
   const server = http.createServer((req, res) => {
@@ -157,45 +151,14 @@ async function main() {
       return;
     }
     res.writeHead(200, { 'content-type': 'text/html; charset=utf-8' });
-    res.end('<!doctype html><title>tint.js</title>');
+    res.end('<!doctype html><title>tint.js</title><link rel="icon" href="data:,">');
   });
   await new Promise((resolve) => server.listen(0, '127.0.0.1', resolve));
   const origin = `http://127.0.0.1:${server.address().port}/`;
-
-  const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'strahl-tint-'));
-  const started = Date.now();
-  let context;
-  let status = 0;
-  try {
-    context = await chromium.launchPersistentContext(profile, {
-      executablePath: args.chromium,
-      headless: true,
-      args: CHROMIUM_FLAGS,
-      ignoreDefaultArgs: ['--headless'],
-    });
-    const page = context.pages()[0] || (await context.newPage());
-    const pageErrors = [];
-    page.on('pageerror', (e) => pageErrors.push(e.message));
+  await reportFromPage({ tool: 'tint.js', executable: args.chromium, server }, async (page) => {
     await page.goto(origin);
-    const report = await page.evaluate(checkInPage, { modules, modulesOnly: args.modulesOnly });
-    if (report.fatal) {
-      process.stderr.write(`tint.js: ${report.fatal}\n`);
-      status = 3;
-    } else {
-      report.browser = context.browser() ? context.browser().version() : null;
-      report.pageErrors = pageErrors;
-      report.totalMs = Date.now() - started;
-      process.stdout.write(`${JSON.stringify(report, null, 1)}\n`);
-    }
-  } catch (e) {
-    process.stderr.write(`tint.js: ${e.message}\n`);
-    status = 3;
-  } finally {
-    if (context) await context.close().catch(() => {});
-    server.close();
-    fs.rmSync(profile, { recursive: true, force: true });
-  }
-  process.exit(status);
+    return page.evaluate(checkInPage, { modules, modulesOnly: args.modulesOnly });
+  });
 }
 
 main();
