@@ -30,7 +30,6 @@ use std::collections::HashMap;
 use std::future::Future;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
-use std::task::{Context, Poll, Waker};
 use std::time::Duration;
 use strahl_core::accel::gpu_bvh::MAX_PRIMS;
 use strahl_core::layout::{FlatScene, FrameParams};
@@ -619,52 +618,20 @@ impl GpuContext {
     /// written them.
     pub(crate) async fn map_read(&self, staging: wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
         let slice = staging.slice(..);
-        let mapped = Mapping::default();
-        let done = mapped.clone();
-        slice.map_async(wgpu::MapMode::Read, move |r| done.complete(r));
+        let (done, mapped) = futures_channel::oneshot::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = done.send(r);
+        });
         self.wait()?;
         let result = mapped.await;
         // In a browser, errors of the work before arrive by now (GpuContext::scoped).
         self.faults.check()?;
-        result.map_err(|e| GpuError::Wgpu(e.to_string()))?;
+        result
+            .map_err(|_| GpuError::Wgpu("the buffer's mapping was dropped unanswered".into()))?
+            .map_err(|e| GpuError::Wgpu(e.to_string()))?;
         let data = slice.get_mapped_range().map_err(|e| GpuError::Wgpu(e.to_string()))?.to_vec();
         staging.unmap();
         Ok(data)
-    }
-}
-
-/// The answer of one `map_async`, as a future: completed by the map callback, awaited by the
-/// readback.
-#[derive(Clone, Default)]
-struct Mapping(Arc<Mutex<MappingState>>);
-
-#[derive(Default)]
-struct MappingState {
-    result: Option<Result<(), wgpu::BufferAsyncError>>,
-    waker: Option<Waker>,
-}
-
-impl Mapping {
-    fn complete(&self, result: Result<(), wgpu::BufferAsyncError>) {
-        let mut state = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        state.result = Some(result);
-        if let Some(w) = state.waker.take() {
-            w.wake();
-        }
-    }
-}
-
-impl Future for Mapping {
-    type Output = Result<(), wgpu::BufferAsyncError>;
-    fn poll(self: std::pin::Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Self::Output> {
-        let mut state = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        match state.result.take() {
-            Some(r) => Poll::Ready(r),
-            None => {
-                state.waker = Some(cx.waker().clone());
-                Poll::Pending
-            }
-        }
     }
 }
 

@@ -27,6 +27,7 @@ let view = null;        // Progressive (path mode) while one runs
 let generation = 0;     // bumped by every restart, so that a stale frame loop stops
 let lastError = null;
 let samplesShown = 0;
+let loopOf = -1;        // the generation whose frame loop runs, -1 when none does
 
 function showError(e) {
   lastError = e ? String(e.message || e) : null;
@@ -90,21 +91,27 @@ function restart() {
     showError(e);
     return;
   }
+  startLoop(mine, width, height);
+}
+
+function startLoop(mine, width, height) {
+  if (loopOf === mine) return;
+  loopOf = mine;
   frameLoop(mine, width, height, 1);
 }
 
 // One frame of path tracing: `batch` sample passes, then the mean is read back and drawn;
 // the batch grows or shrinks to keep a frame near 100 ms.
 async function frameLoop(mine, width, height, batch) {
-  if (mine !== generation || !view) return;
   const limit = settings().limit;
-  if (view.samples >= limit) return;
+  const stop = () => { if (loopOf === mine) loopOf = -1; };
+  if (mine !== generation || !view || view.samples >= limit) return stop();
   const n = Math.min(batch, limit - view.samples);
   const t0 = performance.now();
   try {
     view.add_samples(n);
     const rgba = await view.rgba();
-    if (mine !== generation) return;
+    if (mine !== generation) return stop();
     const ms = Math.max(1, performance.now() - t0);
     draw(rgba, width, height);
     samplesShown = view.samples;
@@ -113,7 +120,7 @@ async function frameLoop(mine, width, height, batch) {
     batch = Math.max(1, Math.min(64, Math.round(n * 100 / ms)));
   } catch (e) {
     showError(e);
-    return;
+    return stop();
   }
   requestAnimationFrame(() => frameLoop(mine, width, height, batch));
 }
@@ -286,8 +293,9 @@ for (const [input, output] of [['max-depth', 'max-depth-out'], ['scale', 'scale-
   $(input).addEventListener('change', restart);
 }
 for (const r of document.querySelectorAll('input[name=mode]')) r.addEventListener('change', restart);
+// A higher limit goes on from the samples there are.
 $('limit').addEventListener('change', () => {
-  if (view && settings().mode === 'path') frameLoop(generation, canvas.width, canvas.height, 1);
+  if (view && settings().mode === 'path') startLoop(generation, canvas.width, canvas.height);
 });
 $('file').addEventListener('change', (e) => { if (e.target.files.length > 0) loadFiles(e.target.files); });
 $('url-form').addEventListener('submit', (e) => { e.preventDefault(); if ($('url').value) loadUrl($('url').value); });
