@@ -4,7 +4,7 @@
 // screenshot of it.
 //
 //   node tools/browser/page.js render DIR JOBS OUTDIR [--chromium PATH]
-//   node tools/browser/page.js screenshot DIR OUT.png [--scene FILE] [--samples N] [--chromium PATH]
+//   node tools/browser/page.js screenshot DIR OUT.png [--scene FILE] [--mode M] [--samples N] [--chromium PATH]
 //
 // render: JOBS is a JSON file, a list of { "name", "scene" (the scene file's text; or "url",
 // a scene the page serves, fetched with the files it names), "opts"
@@ -17,8 +17,9 @@
 // size, or its error.
 //
 // screenshot: the page shows FILE (served beside the page as models/NAME; default the seed
-// scene) until it has N samples per pixel (default 16) or an error, then the page is saved as
-// OUT.png; the report gives the page's status.
+// scene), in mode M (path or whitted; default the scene's), until it has N samples per pixel
+// (default 16; Whitted renders once, at the scene's spp) or an error, then the page is saved
+// as OUT.png; the report gives the page's status.
 //
 // Exit status: 0 when the report was written (the caller judges it), 2 for a usage error,
 // 3 when Chromium, WebGPU or the page could not be started (message on stderr).
@@ -29,7 +30,7 @@ const http = require('http');
 const path = require('path');
 const { reportFromPage } = require('./chromium');
 
-const USAGE = 'usage: node page.js render DIR JOBS OUTDIR | screenshot DIR OUT.png [--scene FILE] [--samples N]';
+const USAGE = 'usage: node page.js render DIR JOBS OUTDIR | screenshot DIR OUT.png [--scene FILE] [--mode M] [--samples N]';
 
 function usage(message) {
   process.stderr.write(`page.js: ${message}\n${USAGE}\n`);
@@ -37,11 +38,15 @@ function usage(message) {
 }
 
 function parseArgs(argv) {
-  const args = { chromium: process.env.CHROMIUM || '/usr/bin/chromium', scene: null, samples: 16, positional: [] };
+  const args = { chromium: process.env.CHROMIUM || '/usr/bin/chromium', scene: null, mode: null, samples: 16, positional: [] };
   for (let i = 0; i < argv.length; i++) {
     const a = argv[i];
     if (a === '--chromium') args.chromium = argv[++i] || usage('--chromium needs a path');
     else if (a === '--scene') args.scene = argv[++i] || usage('--scene needs a file');
+    else if (a === '--mode') {
+      args.mode = argv[++i];
+      if (!['path', 'whitted'].includes(args.mode)) usage('--mode takes path or whitted');
+    }
     else if (a === '--samples') {
       args.samples = Number(argv[++i]);
       if (!Number.isInteger(args.samples) || args.samples < 1) usage('--samples needs a positive integer');
@@ -143,13 +148,15 @@ async function main() {
   }
   const { server, origin } = await serve(dir, extra);
   await reportFromPage({ tool: 'page.js', executable: args.chromium, server, viewport: { width: 1000, height: 560 } }, async (page) => {
-    const query = extra ? `?scene=models/${encodeURIComponent(path.basename(extra))}` : '';
-    await page.goto(`${origin}index.html${query}`);
+    const query = new URLSearchParams();
+    if (extra) query.set('scene', `models/${path.basename(extra)}`);
+    if (args.mode) query.set('mode', args.mode);
+    await page.goto(`${origin}index.html?${query}`);
     await page.waitForFunction(() => window.strahl !== undefined, null, { timeout: 60000 });
     if (args.command === 'screenshot') {
       await page.waitForFunction(
-        (n) => { const s = window.strahl.status(); return s.error || s.samples >= n; },
-        args.samples,
+        ([n, whitted]) => { const s = window.strahl.status(); return s.error || (whitted ? s.samples > 0 : s.samples >= n); },
+        [args.samples, args.mode === 'whitted'],
         { timeout: 600000, polling: 250 },
       );
       const report = { status: await page.evaluate(() => window.strahl.status()) };

@@ -28,6 +28,7 @@ let generation = 0;     // bumped by every restart, so that a stale frame loop s
 let lastError = null;
 let samplesShown = 0;
 let loopOf = -1;        // the generation whose frame loop runs, -1 when none does
+let firstMode = null;   // ?mode= of the page's address, for the first scene
 
 function showError(e) {
   lastError = e ? String(e.message || e) : null;
@@ -160,7 +161,9 @@ async function load(name, bytes, files) {
   $('max-depth-out').textContent = scene.max_depth;
   const w = $('warnings');
   w.replaceChildren(...scene.warnings.map((line) => Object.assign(document.createElement('li'), { textContent: line })));
-  document.querySelector(`input[name=mode][value=${scene.mode}]`).checked = true;
+  const mode = firstMode || scene.mode;
+  firstMode = null;
+  document.querySelector(`input[name=mode][value=${mode}]`).checked = true;
   restart();
 }
 
@@ -326,5 +329,7 @@ fetch('scenes/index.json').then((r) => (r.ok ? r.json() : [])).then((names) => {
   select.addEventListener('change', () => { if (select.value) loadUrl(select.value); });
 }, () => {});
 
-// The first scene: ?scene=URL, else the seed scene.
-loadUrl(new URLSearchParams(location.search).get('scene') || 'scenes/seed.toml');
+// The first scene: ?scene=URL, else the seed scene; in ?mode=path or whitted, else the scene's.
+const query = new URLSearchParams(location.search);
+firstMode = ['path', 'whitted'].includes(query.get('mode')) ? query.get('mode') : null;
+loadUrl(query.get('scene') || 'scenes/seed.toml');
