@@ -15,7 +15,7 @@ use strahl_web::session::{self, Loaded, Options, Request};
 /// The CPU reference image of `request` on `prep`: Whitted by `cpu::render`, path tracing by
 /// the CPU's accumulator, the same samples as the GPU's.
 fn cpu_image(prep: &Arc<Prepared>, request: &Request) -> Image {
-    let frame = request.frame(prep);
+    let frame = request.frame(prep, None);
     match request.mode {
         RenderMode::Whitted => strahl_core::cpu::render(prep, &frame, RenderMode::Whitted, &|_| {}),
         RenderMode::Path => cpu_path_image(prep, frame, request.spp),
@@ -82,7 +82,7 @@ fn the_pages_render_path_matches_the_cpu_natively() {
             ..Default::default()
         };
         let request = Request::new(&loaded.prep.scene, &o).unwrap();
-        let got = pollster::block_on(session::render(&ctx, &loaded, &request)).unwrap();
+        let got = pollster::block_on(session::render(&ctx, &loaded, &request, None)).unwrap();
         assert_eq!(got.non_finite_count(), 0);
         let want = cpu_image(&loaded.prep, &request);
         let rgb = |i: &Image| i.to_srgb8();

@@ -4,15 +4,13 @@
 //! [`GpuContext`] owns the device and caches one pipeline per (program, [`FeatureKey`]);
 //! [`SceneBuffers`] holds a scene's storage buffers; [`render`] and [`trace`] dispatch.
 //!
-//! Reading a result back waits for the GPU. A native program may block for it; a browser's
-//! page may not (its GPU work completes only when control returns to the event loop), so
-//! each readback has an async form ([`GpuContext::read_buffer_async`],
-//! [`tiles::render_region_async`], [`PathAccumulator::image_async`]) and the blocking one is
-//! that form run to completion ([`block_on`]), which in a browser is an error
-//! ([`GpuError::Blocking`]).
+//! Every readback has an async form for web pages, which cannot block (`readback.rs`):
+//! [`GpuContext::read_buffer_async`], [`tiles::render_region_async`],
+//! [`PathAccumulator::image_async`].
 
 pub mod instance;
 pub mod objects;
+mod readback;
 pub mod select;
 pub mod shaders;
 pub mod shared;
@@ -22,12 +20,12 @@ pub mod timing;
 pub mod trace;
 pub mod wavefront;
 
+pub use readback::{IN_BROWSER, block_on};
 pub use shaders::{FeatureKey, Program};
 pub use tiles::{PathAccumulator, render, render_region, render_tiles};
 
 use split::{Split, SplitArray};
 use std::collections::HashMap;
-use std::future::Future;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -81,20 +79,6 @@ pub enum GpuError {
     TooDeep { limit: u32 },
     #[error("{0} waits for the GPU, which a web page cannot do: use its async form")]
     Blocking(&'static str),
-}
-
-/// Whether this build runs in a browser (wasm32, WebGPU): no blocking waits, no error scopes
-/// waited for.
-pub const IN_BROWSER: bool = cfg!(target_arch = "wasm32");
-
-/// Runs `work`, a readback's async form, to completion on this thread: native programs only.
-/// In a browser the GPU's answer arrives only after control returns to the event loop, so
-/// this fails with [`GpuError::Blocking`] naming `what` instead of waiting forever.
-pub fn block_on<T>(what: &'static str, work: impl Future<Output = Result<T, GpuError>>) -> Result<T, GpuError> {
-    if IN_BROWSER {
-        return Err(GpuError::Blocking(what));
-    }
-    pollster::block_on(work)
 }
 
 /// What the device reports outside any error scope, and its loss: recorded here instead of
@@ -565,73 +549,6 @@ impl GpuContext {
             contents: if bytes.is_empty() { &empty } else { bytes },
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         })
-    }
-
-    /// Copies the first `count` elements of `src`, an array of `T`, to the host (blocking: not
-    /// in a browser, see [`GpuContext::read_pod_async`]). The bytes land in a `Vec<T>`,
-    /// aligned for `T`; `count` may be 0.
-    pub fn read_pod<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>, GpuError> {
-        block_on("reading back a result", self.read_pod_async(src, count))
-    }
-
-    /// [`GpuContext::read_pod`] without blocking.
-    pub async fn read_pod_async<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>, GpuError> {
-        let bytes = self.read_buffer_async(src, (count * std::mem::size_of::<T>()) as u64).await?;
-        Ok(bytemuck::pod_collect_to_vec(&bytes))
-    }
-
-    /// Copies `size` bytes of `src` to the host (blocking: not in a browser); nothing for
-    /// `size` 0.
-    pub fn read_buffer(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
-        block_on("reading back a result", self.read_buffer_async(src, size))
-    }
-
-    /// [`GpuContext::read_buffer`] without blocking: the copy is submitted, and the future
-    /// completes when the buffer is mapped (natively during [`GpuContext::wait`], so at once).
-    pub async fn read_buffer_async(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
-        if size == 0 {
-            return Ok(Vec::new());
-        }
-        let staging = self.copy_for_reading(src, size)?;
-        self.map_read(staging).await
-    }
-
-    /// Submits a copy of the first `size` bytes (not 0) of `src` into a new buffer the host can
-    /// map ([`GpuContext::map_read`]): the copy sees the work submitted before it, whatever is
-    /// submitted while the host waits.
-    pub(crate) fn copy_for_reading(&self, src: &wgpu::Buffer, size: u64) -> Result<wgpu::Buffer, GpuError> {
-        let staging = self.scoped("the readback buffer", || {
-            self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("readback"),
-                size,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        })?;
-        let mut enc = self.device.create_command_encoder(&Default::default());
-        enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
-        self.submit("reading back a result", enc)?;
-        Ok(staging)
-    }
-
-    /// The bytes of `staging`, a buffer of [`GpuContext::copy_for_reading`], once the GPU has
-    /// written them.
-    pub(crate) async fn map_read(&self, staging: wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
-        let slice = staging.slice(..);
-        let (done, mapped) = futures_channel::oneshot::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = done.send(r);
-        });
-        self.wait()?;
-        let result = mapped.await;
-        // In a browser, errors of the work before arrive by now (GpuContext::scoped).
-        self.faults.check()?;
-        result
-            .map_err(|_| GpuError::Wgpu("the buffer's mapping was dropped unanswered".into()))?
-            .map_err(|e| GpuError::Wgpu(e.to_string()))?;
-        let data = slice.get_mapped_range().map_err(|e| GpuError::Wgpu(e.to_string()))?.to_vec();
-        staging.unmap();
-        Ok(data)
     }
 }
 

@@ -9,7 +9,8 @@
 //! that changes the image (camera, mode, depth, size, visibility, a reloaded file) restarts
 //! the accumulation; otherwise samples keep adding up to the sample limit.
 
-pub mod camera;
+/// The camera the viewer moves (strahl-core's, shared with the web page).
+pub use strahl_core::render::view_camera as camera;
 mod compare;
 pub mod gpu;
 mod jobs;
@@ -297,12 +298,7 @@ impl Viewer {
 
     /// The frame parameters of the current view at `w`×`h` (one sample per pass).
     fn frame(&self, w: u32, h: u32) -> FrameParams {
-        let mut f = self.prep.frame(w, h);
-        let c = strahl_core::render::camera::frame(&self.camera.to_camera(), w, h);
-        f.eye = c.eye;
-        f.forward = c.forward;
-        f.right = c.right;
-        f.up = c.up;
+        let mut f = self.prep.frame_from(&self.camera.to_camera(), w, h);
         f.max_depth = self.max_depth;
         f.spp = 1;
         // The mode's flags, keeping the scene's (FRAME_ENVIRONMENT).

@@ -26,6 +26,7 @@ use session::{Loaded, Options, Request};
 use std::cell::RefCell;
 use std::rc::Rc;
 use std::sync::Arc;
+use strahl_core::render::view_camera::ViewCamera;
 use strahl_gpu::GpuContext;
 use strahl_gpu::tiles::PathAccumulator;
 use wasm_bindgen::prelude::*;
@@ -92,7 +93,9 @@ impl Renderer {
     /// Loads the file `name` (by its extension: `.gltf`, `.glb`, else TOML) with contents
     /// `bytes`, prepares it and uploads it.
     pub fn load(&self, name: &str, bytes: &[u8]) -> Result<Scene, JsValue> {
-        Ok(Scene { loaded: Rc::new(Loaded::new(&self.ctx, name, bytes).map_err(js)?) })
+        let loaded = Loaded::new(&self.ctx, name, bytes).map_err(js)?;
+        let view = RefCell::new(ViewCamera::from_scene(&loaded.prep.scene.camera));
+        Ok(Scene { loaded: Rc::new(loaded), view })
     }
 
     /// Renders `scene` as `strahl render --backend gpu` would with these options (each
@@ -112,7 +115,25 @@ impl Renderer {
         let options = Options { mode, spp, width, height, seed, max_depth };
         wasm_bindgen_futures::future_to_promise(async move {
             let request = Request::new(&loaded.prep.scene, &options).map_err(js)?;
-            let image = session::render(&ctx, &loaded, &request).await.map_err(js)?;
+            let image = session::render(&ctx, &loaded, &request, None).await.map_err(js)?;
+            Ok(Frame { width: image.width, height: image.height, rgba: session::rgba8(&image) }.into())
+        })
+    }
+
+    /// [`Renderer::render`] in Whitted mode from the scene's moved camera ([`Scene::orbit`]
+    /// and the others), as the view shows it.
+    pub fn render_view(&self, scene: &Scene, width: f64, height: f64, max_depth: f64) -> js_sys::Promise {
+        let (ctx, loaded, view) = (self.ctx.clone(), scene.loaded.clone(), scene.view.borrow().to_camera());
+        let options = Options {
+            mode: Some("whitted".into()),
+            width: Some(width),
+            height: Some(height),
+            max_depth: Some(max_depth),
+            ..Default::default()
+        };
+        wasm_bindgen_futures::future_to_promise(async move {
+            let request = Request::new(&loaded.prep.scene, &options).map_err(js)?;
+            let image = session::render(&ctx, &loaded, &request, Some(&view)).await.map_err(js)?;
             Ok(Frame { width: image.width, height: image.height, rgba: session::rgba8(&image) }.into())
         })
     }
@@ -129,21 +150,50 @@ impl Renderer {
         })
     }
 
-    /// A progressive path-traced view of `scene` at `width`×`height`.
+    /// A progressive path-traced view of `scene` from its moved camera at `width`×`height`.
     pub fn progressive(&self, scene: &Scene, width: u32, height: u32, max_depth: u32) -> Result<Progressive, JsValue> {
-        let acc = session::progressive(self.ctx.clone(), &scene.loaded, width, height, max_depth).map_err(js)?;
+        let view = scene.view.borrow().to_camera();
+        let acc = session::progressive(self.ctx.clone(), &scene.loaded, &view, width, height, max_depth).map_err(js)?;
         Ok(Progressive { acc: Rc::new(RefCell::new(acc)) })
     }
 }
 
-/// A scene loaded on a [`Renderer`]'s device.
+/// A scene loaded on a [`Renderer`]'s device, and the camera the view moves over it (the
+/// scene's at first; [`Renderer::render`] always takes the scene's own).
 #[wasm_bindgen]
 pub struct Scene {
     loaded: Rc<Loaded>,
+    view: RefCell<ViewCamera>,
 }
 
 #[wasm_bindgen]
 impl Scene {
+    /// Turns the view's eye about its target as `strahl view`'s left drag does: `yaw` radians
+    /// about the world up, `pitch` radians about the view's right axis.
+    pub fn orbit(&self, yaw: f64, pitch: f64) {
+        self.view.borrow_mut().orbit(yaw, pitch);
+    }
+    /// Slides the view by `dx`, `dy` pixels of a `height_px`-high image (the right drag).
+    pub fn pan(&self, dx: f64, dy: f64, height_px: f64) {
+        self.view.borrow_mut().pan(dx, dy, height_px);
+    }
+    /// Multiplies the eye's distance to the target by `factor` (the wheel).
+    pub fn zoom(&self, factor: f64) {
+        self.view.borrow_mut().zoom(factor);
+    }
+    /// The view's vertical field of view in degrees.
+    #[wasm_bindgen(getter)]
+    pub fn fov_y(&self) -> f64 {
+        self.view.borrow().fov_y
+    }
+    #[wasm_bindgen(setter)]
+    pub fn set_fov_y(&self, degrees: f64) {
+        self.view.borrow_mut().fov_y = degrees.clamp(1.0, 170.0);
+    }
+    /// Back to the scene file's camera.
+    pub fn reset_camera(&self) {
+        *self.view.borrow_mut() = ViewCamera::from_scene(&self.loaded.prep.scene.camera);
+    }
     #[wasm_bindgen(getter)]
     pub fn width(&self) -> u32 {
         self.loaded.prep.scene.image.width

@@ -11,7 +11,7 @@ use strahl_core::math::V3;
 use strahl_core::query::{RayQuery, unit_direction};
 use strahl_core::render::Prepared;
 use strahl_core::scene::file::{MAX_DEPTH, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_SPP};
-use strahl_core::scene::{LoadOptions, RenderMode, Scene};
+use strahl_core::scene::{Camera, LoadOptions, RenderMode, Scene};
 use strahl_gpu::tiles::{PathAccumulator, render_region_async};
 use strahl_gpu::{GpuContext, SceneBuffers};
 
@@ -105,9 +105,13 @@ impl Request {
         })
     }
 
-    /// The frame parameters of this request on `prep`.
-    pub fn frame(&self, prep: &Prepared) -> FrameParams {
-        let mut frame = prep.frame(self.width, self.height);
+    /// The frame parameters of this request on `prep`, seen from the scene's camera or from
+    /// `view`, the page's moved one.
+    pub fn frame(&self, prep: &Prepared, view: Option<&Camera>) -> FrameParams {
+        let mut frame = match view {
+            Some(c) => prep.frame_from(c, self.width, self.height),
+            None => prep.frame(self.width, self.height),
+        };
         frame.spp = self.spp;
         frame.seed = self.seed;
         frame.max_depth = self.max_depth;
@@ -115,10 +119,15 @@ impl Request {
     }
 }
 
-/// Renders `request` of `scene` on `ctx` as `strahl render --backend gpu` does, without
-/// blocking.
-pub async fn render(ctx: &GpuContext, scene: &Loaded, request: &Request) -> Result<Image, String> {
-    let frame = request.frame(&scene.prep);
+/// Renders `request` of `scene` on `ctx` as `strahl render --backend gpu` does (from `view`
+/// where given instead of the scene's camera), without blocking.
+pub async fn render(
+    ctx: &GpuContext,
+    scene: &Loaded,
+    request: &Request,
+    view: Option<&Camera>,
+) -> Result<Image, String> {
+    let frame = request.frame(&scene.prep, view);
     let region = Region::whole(request.width, request.height);
     let b = &scene.buffers;
     let (image, _) = render_region_async(ctx, b, &frame, request.mode, b.key, region, &|_, _| {})
@@ -127,10 +136,12 @@ pub async fn render(ctx: &GpuContext, scene: &Loaded, request: &Request) -> Resu
     Ok(image)
 }
 
-/// A progressive path-traced view of `scene` at `width`×`height` (checked as a request's).
+/// A progressive path-traced view of `scene` from `view` at `width`×`height` (checked as a
+/// request's).
 pub fn progressive(
     ctx: Arc<GpuContext>,
     scene: &Loaded,
+    view: &Camera,
     width: u32,
     height: u32,
     max_depth: u32,
@@ -142,7 +153,7 @@ pub fn progressive(
         ..Default::default()
     };
     let request = Request::new(&scene.prep.scene, &o)?;
-    PathAccumulator::new(ctx, scene.buffers.clone(), request.frame(&scene.prep)).map_err(|e| e.to_string())
+    PathAccumulator::new(ctx, scene.buffers.clone(), request.frame(&scene.prep, Some(view))).map_err(|e| e.to_string())
 }
 
 /// Rays as a script passes them: 8 numbers per ray in the columns of `strahl trace`'s CSV

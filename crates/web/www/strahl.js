@@ -76,7 +76,7 @@ function restart() {
   const mine = generation;
   if (s.mode === 'whitted') {
     const t0 = performance.now();
-    renderer.render(scene, 'whitted', undefined, width, height, 0, s.maxDepth).then((frame) => {
+    renderer.render_view(scene, width, height, s.maxDepth).then((frame) => {
       if (mine !== generation) return frame.free();
       draw(frame.rgba, frame.width, frame.height);
       frame.free();
@@ -159,6 +159,8 @@ async function load(name, bytes, files) {
   $('summary').textContent = scene.summary;
   $('max-depth').value = scene.max_depth;
   $('max-depth-out').textContent = scene.max_depth;
+  $('fov').value = scene.fov_y;
+  $('fov-out').textContent = Math.round(scene.fov_y);
   const w = $('warnings');
   w.replaceChildren(...scene.warnings.map((line) => Object.assign(document.createElement('li'), { textContent: line })));
   const mode = firstMode || scene.mode;
@@ -289,6 +291,52 @@ ready.catch((e) => {
 });
 
 window.strahl = { ready, render, trace, load, fetchScene, status };
+
+// The camera, moved as in `strahl view`: left drag orbits, right or middle drag pans, the
+// wheel zooms; each move restarts the image (at most once per animation frame).
+let restartPending = false;
+function restartSoon() {
+  if (restartPending) return;
+  restartPending = true;
+  requestAnimationFrame(() => { restartPending = false; restart(); });
+}
+let drag = null;
+canvas.addEventListener('pointerdown', (e) => {
+  if (!scene) return;
+  drag = { x: e.clientX, y: e.clientY, pan: e.button !== 0 };
+  canvas.setPointerCapture(e.pointerId);
+});
+canvas.addEventListener('pointermove', (e) => {
+  if (!drag || !scene) return;
+  const dx = e.clientX - drag.x;
+  const dy = e.clientY - drag.y;
+  drag.x = e.clientX;
+  drag.y = e.clientY;
+  if (drag.pan) scene.pan(dx, dy, canvas.clientHeight);
+  else scene.orbit(dx * 0.01, dy * 0.01);
+  restartSoon();
+});
+canvas.addEventListener('pointerup', () => { drag = null; });
+canvas.addEventListener('contextmenu', (e) => e.preventDefault());
+canvas.addEventListener('wheel', (e) => {
+  if (!scene) return;
+  e.preventDefault();
+  scene.zoom(Math.exp(e.deltaY * 0.002));
+  restartSoon();
+}, { passive: false });
+function resetCamera() {
+  if (!scene) return;
+  scene.reset_camera();
+  $('fov').value = scene.fov_y;
+  $('fov-out').textContent = Math.round(scene.fov_y);
+  restart();
+}
+$('reset').addEventListener('click', resetCamera);
+document.addEventListener('keydown', (e) => { if ((e.key === 'r' || e.key === 'R') && e.target.tagName !== 'INPUT') resetCamera(); });
+$('fov').addEventListener('input', () => {
+  $('fov-out').textContent = $('fov').value;
+  if (scene) { scene.fov_y = Number($('fov').value); restartSoon(); }
+});
 
 // The panel.
 for (const [input, output] of [['max-depth', 'max-depth-out'], ['scale', 'scale-out']]) {

@@ -18,6 +18,7 @@ pub mod shade;
 pub mod spawn;
 pub mod surface;
 pub mod texture;
+pub mod view_camera;
 
 use crate::accel::{Bvh, WideBvh};
 use crate::layout::{FlatScene, FrameParams};
@@ -118,6 +119,15 @@ impl Prepared {
         let wide = WideBvh::new(&bvh, &prims);
         let gpu = FlatScene::new(&scene, &prims, &bvh);
         Self { scene, prims, bvh, wide, gpu, build_time, prepare_time: start.elapsed() }
+    }
+
+    /// [`Prepared::frame`] seen from `view` instead of the scene's camera (the viewer's and
+    /// the web page's moved camera).
+    pub fn frame_from(&self, view: &crate::scene::Camera, width: u32, height: u32) -> FrameParams {
+        let mut f = self.frame(width, height);
+        let c = camera::frame(view, width, height);
+        (f.eye, f.forward, f.right, f.up) = (c.eye, c.forward, c.right, c.up);
+        f
     }
 
     /// The frame parameters for rendering the whole image at `width`×`height`.

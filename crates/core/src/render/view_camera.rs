@@ -1,8 +1,9 @@
-//! The viewer's camera: the scene file's pinhole camera, moved by orbit, pan, zoom and fly.
-//! It keeps the file's up direction as the world's up, so the horizon stays level.
+//! The interactive camera of `strahl view` and the web page: the scene file's pinhole camera,
+//! moved by orbit, pan, zoom and fly. It keeps the file's up direction as the world's up, so
+//! the horizon stays level.
 
-use strahl_core::math::V3;
-use strahl_core::scene::Camera;
+use crate::math::V3;
+use crate::scene::Camera;
 
 /// The closest the view direction may come to the up axis when orbiting (radians).
 const POLE_MARGIN: f64 = 0.01;
