@@ -231,7 +231,8 @@ mod tests {
     fn seed_scene() -> (String, Scene) {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/seed.toml");
         let text = std::fs::read_to_string(&path).unwrap();
-        let scene = Scene::from_bytes(Path::new("seed.toml"), text.as_bytes(), &LoadOptions::default()).unwrap();
+        // Named by its path, so that the mesh it names is found beside it.
+        let scene = Scene::from_bytes(&path, text.as_bytes(), &LoadOptions::default()).unwrap();
         (text, scene)
     }
 
@@ -272,7 +273,7 @@ mod tests {
         );
         let broken = text.replacen("radius = 5.0", "radius = \"five\"", 1);
         let e = Scene::from_bytes(Path::new("seed.toml"), broken.as_bytes(), &LoadOptions::default()).unwrap_err();
-        assert!(e.to_string().starts_with("seed.toml:"), "{e}");
+        assert!(e.to_string().starts_with("seed.toml:") && e.to_string().contains("radius"), "{e}");
         let e = Scene::from_bytes(Path::new("model.glb"), b"not a glb", &LoadOptions::default()).unwrap_err();
         assert!(e.to_string().contains("model.glb"), "{e}");
     }
