@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{Rng, gpu, same_hit, shipped_scenes, test_rays};
+use common::{Rng, gpu, same_hit, shared_edge_rays, shipped_scenes, test_rays};
 use strahl_core::cpu;
 use strahl_core::math::V3;
 use strahl_core::primitives::Hit;
@@ -133,19 +133,7 @@ fn a_ray_from_1e38_gives_the_same_rows_on_both_backends() {
 fn a_shared_edge_is_one_hit_on_both_backends() {
     let Some(ctx) = gpu() else { return };
     let (scene, buffers) = shipped_on(&ctx, "seed.toml");
-    let mut rng = Rng(5);
-    let (a, b) = (V3::new(-30.0, -5.0, -20.0), V3::new(30.0, -5.0, 40.0));
-    let (c, d) = (V3::new(-30.0, -5.0, 40.0), V3::new(30.0, -5.0, -20.0));
-    let rays: Vec<RayQuery> = (0..20_000)
-        .map(|i| {
-            let (p, q) = if i % 2 == 0 { (a, b) } else { (c, d) };
-            let target: V3<f64> = (p + (q - p) * rng.unit()).cast::<f32>().cast();
-            let o: V3<f64> =
-                V3::new(rng.range(-40.0, 40.0), rng.range(-4.0, 30.0), rng.range(-30.0, 50.0)).cast::<f32>().cast();
-            let dir = (target - o).normalize().cast::<f32>().cast();
-            RayQuery { origin: o, dir, tmin: 0.0, tmax: f64::INFINITY }
-        })
-        .collect();
+    let rays = shared_edge_rays(20_000, 5);
     let want = cpu::trace::<f32>(&scene, &rays, true);
     let got = trace(&ctx, &buffers, &rays, true).unwrap();
     let floor_rows = |h: &[Hit<f32>]| h.iter().filter(|h| h.tag.object == 4).count();

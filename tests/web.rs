@@ -227,19 +227,7 @@ fn the_page_in_chromium_renders_and_traces_as_the_cpu_does() {
     }
     jobs.extend(exact("lecture.toml", Vec::new()));
     jobs.extend(exact("lecture.toml", vec![ray([0.0, 20.0, 0.0], [0.0, 0.0, 1.0]); 2]));
-    let mut rng = common::Rng(5);
-    let (a, b) = (V3::new(-30.0, -5.0, -20.0), V3::new(30.0, -5.0, 40.0));
-    let (c, d) = (V3::new(-30.0, -5.0, 40.0), V3::new(30.0, -5.0, -20.0));
-    let edge_rays = (0..20_000)
-        .map(|i| {
-            let (p, q) = if i % 2 == 0 { (a, b) } else { (c, d) };
-            let target: V3<f64> = (p + (q - p) * rng.unit()).cast::<f32>().cast();
-            let o: V3<f64> =
-                V3::new(rng.range(-40.0, 40.0), rng.range(-4.0, 30.0), rng.range(-30.0, 50.0)).cast::<f32>().cast();
-            let dir = (target - o).normalize().cast::<f32>().cast();
-            strahl_core::query::RayQuery { origin: o, dir, tmin: 0.0, tmax: f64::INFINITY }
-        })
-        .collect();
+    let edge_rays = common::shared_edge_rays(20_000, 5);
     jobs.push(("seed.toml".into(), Job::Trace { rays: edge_rays, all: true, check: Check::OneFloorRow }));
     let json: Vec<serde_json::Value> = jobs
         .iter()

@@ -148,6 +148,26 @@ pub fn same_hit(a: &strahl_core::primitives::Hit<f32>, b: &strahl_core::primitiv
         && a.enter == b.enter
 }
 
+/// `n` rays at points of the seed floor's diagonal, the edge its two triangles share (its
+/// corners (-30, -5, -20)-(30, -5, 40) and (-30, -5, 40)-(30, -5, -20), alternately), from
+/// random points above it, every coordinate an f32.
+pub fn shared_edge_rays(n: usize, seed: u64) -> Vec<strahl_core::query::RayQuery> {
+    use strahl_core::math::V3;
+    let mut rng = Rng(seed);
+    let (a, b) = (V3::new(-30.0, -5.0, -20.0), V3::new(30.0, -5.0, 40.0));
+    let (c, d) = (V3::new(-30.0, -5.0, 40.0), V3::new(30.0, -5.0, -20.0));
+    (0..n)
+        .map(|i| {
+            let (p, q) = if i % 2 == 0 { (a, b) } else { (c, d) };
+            let target: V3<f64> = (p + (q - p) * rng.unit()).cast::<f32>().cast();
+            let o: V3<f64> =
+                V3::new(rng.range(-40.0, 40.0), rng.range(-4.0, 30.0), rng.range(-30.0, 50.0)).cast::<f32>().cast();
+            let dir = (target - o).normalize().cast::<f32>().cast();
+            strahl_core::query::RayQuery { origin: o, dir, tmin: 0.0, tmax: f64::INFINITY }
+        })
+        .collect()
+}
+
 /// Mean over the given pixels (channels averaged) and its standard error from their spread
 /// (pixels are independent estimates).
 pub fn mean_and_error(values: &[f64]) -> (f64, f64) {
