@@ -27,6 +27,7 @@ use std::cell::RefCell;
 use std::rc::Rc;
 use std::sync::Arc;
 use strahl_core::render::view_camera::ViewCamera;
+use strahl_core::scene::Camera;
 use strahl_gpu::GpuContext;
 use strahl_gpu::tiles::PathAccumulator;
 use wasm_bindgen::prelude::*;
@@ -111,19 +112,12 @@ impl Renderer {
         seed: Option<f64>,
         max_depth: Option<f64>,
     ) -> js_sys::Promise {
-        let (ctx, loaded) = (self.ctx.clone(), scene.loaded.clone());
-        let options = Options { mode, spp, width, height, seed, max_depth };
-        wasm_bindgen_futures::future_to_promise(async move {
-            let request = Request::new(&loaded.prep.scene, &options).map_err(js)?;
-            let image = session::render(&ctx, &loaded, &request, None).await.map_err(js)?;
-            Ok(Frame { width: image.width, height: image.height, rgba: session::rgba8(&image) }.into())
-        })
+        self.render_promise(scene, Options { mode, spp, width, height, seed, max_depth }, None)
     }
 
     /// [`Renderer::render`] in Whitted mode from the scene's moved camera ([`Scene::orbit`]
     /// and the others), as the view shows it.
     pub fn render_view(&self, scene: &Scene, width: f64, height: f64, max_depth: f64) -> js_sys::Promise {
-        let (ctx, loaded, view) = (self.ctx.clone(), scene.loaded.clone(), scene.view.borrow().to_camera());
         let options = Options {
             mode: Some("whitted".into()),
             width: Some(width),
@@ -131,11 +125,7 @@ impl Renderer {
             max_depth: Some(max_depth),
             ..Default::default()
         };
-        wasm_bindgen_futures::future_to_promise(async move {
-            let request = Request::new(&loaded.prep.scene, &options).map_err(js)?;
-            let image = session::render(&ctx, &loaded, &request, Some(&view)).await.map_err(js)?;
-            Ok(Frame { width: image.width, height: image.height, rgba: session::rgba8(&image) }.into())
-        })
+        self.render_promise(scene, options, Some(scene.view.borrow().to_camera()))
     }
 
     /// Answers `rays` (a Float64Array, 8 numbers per ray: ox, oy, oz, dx, dy, dz, tmin, tmax)
@@ -155,6 +145,19 @@ impl Renderer {
         let view = scene.view.borrow().to_camera();
         let acc = session::progressive(self.ctx.clone(), &scene.loaded, &view, width, height, max_depth).map_err(js)?;
         Ok(Progressive { acc: Rc::new(RefCell::new(acc)) })
+    }
+}
+
+impl Renderer {
+    /// A Promise of the [`Frame`] of `options` on `scene`, from `view` where given instead of
+    /// the scene's camera.
+    fn render_promise(&self, scene: &Scene, options: Options, view: Option<Camera>) -> js_sys::Promise {
+        let (ctx, loaded) = (self.ctx.clone(), scene.loaded.clone());
+        wasm_bindgen_futures::future_to_promise(async move {
+            let request = Request::new(&loaded.prep.scene, &options).map_err(js)?;
+            let image = session::render(&ctx, &loaded, &request, view.as_ref()).await.map_err(js)?;
+            Ok(Frame { width: image.width, height: image.height, rgba: session::rgba8(&image) }.into())
+        })
     }
 }
 
