@@ -123,10 +123,17 @@ impl RayIn {
             return Err("NaN or infinity in a ray: all six values (ox, oy, oz, dx, dy, dz) must be finite");
         }
         let d = V3::new(r[3], r[4], r[5]);
-        let dir = unit_direction(d).ok_or("the direction (dx, dy, dz) is zero")?;
-        // Scaled as unit_direction scales, so that neither 1e300 nor 1e-300 over- or underflows.
+        // unit_direction's operations, in its order (so that the direction is the one `strahl
+        // trace` traces, bit for bit), keeping the length it finds on the way: scaled by the
+        // largest component, neither 1e300 nor 1e-300 over- or underflows.
         let m = d.abs().max_component();
-        Ok(Self { origin: V3::new(r[0], r[1], r[2]), dir, length: (d / m).length() * m })
+        if !(m > 0.0) {
+            return Err("the direction (dx, dy, dz) is zero");
+        }
+        let s = d / m;
+        let l = s.length();
+        debug_assert_eq!(Some(s / l), unit_direction(d));
+        Ok(Self { origin: V3::new(r[0], r[1], r[2]), dir: s / l, length: l * m })
     }
 
     /// Rounded to f32, exactly as `RayQuery::ray::<f32>` rounds it.

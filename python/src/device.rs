@@ -16,6 +16,11 @@ pub fn parse_choice(device: &str, argument: &str) -> PyResult<Choice> {
         .ok_or_else(|| PyValueError::new_err(format!("{argument}={device:?}: use \"auto\", \"gpu\" or \"cpu\"")))
 }
 
+/// `auto`'s reason in Python's words (strahl-gpu words it for the command line).
+fn python_words(why: String) -> String {
+    why.replace("--backend gpu", "device=\"gpu\"")
+}
+
 /// The GPU error as Python sees it.
 pub fn gpu_error(e: GpuError) -> PyErr {
     PyRuntimeError::new_err(e.to_string())
@@ -44,6 +49,7 @@ pub fn open(choice: Choice, workload: Workload) -> Result<(Option<Arc<GpuContext
                 // Already open: the same decision for this work, without probing again.
                 let info = ctx.adapter_info.clone();
                 let (backend, why) = decide(Some(&info), workload, on_software_device);
+                let why = python_words(why);
                 return Ok(match backend {
                     Backend::Gpu => (Some(ctx.clone()), Some(format!("gpu ({why})"))),
                     Backend::Cpu => (None, Some(format!("cpu ({why})"))),
@@ -55,6 +61,7 @@ pub fn open(choice: Choice, workload: Workload) -> Result<(Option<Arc<GpuContext
             };
             let info = adapter.as_ref().map(|a| a.get_info());
             let (backend, why) = decide(info.as_ref(), workload, on_software_device);
+            let why = python_words(why);
             match (backend, adapter) {
                 (Backend::Gpu, Some(adapter)) => match shared(|| GpuContext::from_adapter(&adapter)) {
                     Ok(ctx) => Ok((Some(ctx), Some(format!("gpu ({why})")))),
