@@ -14,9 +14,7 @@ use strahl_core::math::V3;
 use strahl_core::primitives::{Primitives, Tag};
 use strahl_core::render::{Prepared, available_memory, check_memory};
 use strahl_core::scene::mesh::MAX_MESH_TRIANGLES;
-use strahl_core::scene::{
-    Camera, Geometry, ImageSize, Light, Material, Object, RenderSettings, Scene, SceneError, procedural,
-};
+use strahl_core::scene::{Camera, Geometry, ImageSize, Light, Object, Scene, SceneError, procedural};
 use strahl_gpu::{GpuContext, GpuError, SceneBuffers};
 
 /// Open3D's `INVALID_ID`: the geometry and primitive id of a miss.
@@ -82,17 +80,8 @@ pub struct Contents {
 }
 
 fn empty_scene() -> Scene {
-    Scene {
-        camera: Camera { eye: V3::new(0.0, 0.0, -5.0), look_at: V3::zero(), up: V3::new(0.0, 1.0, 0.0), fov_y: 40.0 },
-        image: ImageSize { width: 640, height: 480 },
-        render: RenderSettings::default(),
-        materials: vec![Material::default_grey()],
-        objects: Vec::new(),
-        lights: Vec::new(),
-        textures: Vec::new(),
-        environment: None,
-        warnings: Vec::new(),
-    }
+    let camera = Camera { eye: V3::new(0.0, 0.0, -5.0), look_at: V3::zero(), up: V3::new(0.0, 1.0, 0.0), fov_y: 40.0 };
+    Scene::empty(camera, ImageSize { width: 640, height: 480 })
 }
 
 /// Triangles that one scene may hold in all, as strahl's mesh loaders allow one mesh.

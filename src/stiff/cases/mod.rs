@@ -19,7 +19,7 @@ use strahl_core::layout::FlatScene;
 use strahl_core::math::{Ray, V3};
 use strahl_core::primitives::Primitives;
 use strahl_core::query::RayQuery;
-use strahl_core::scene::{Camera, ImageSize, Material, RenderSettings, Scene};
+use strahl_core::scene::{Camera, ImageSize, Scene};
 use strahl_gpu::{GpuContext, GpuError, SceneBuffers};
 
 /// Where and how much to run.
@@ -59,17 +59,8 @@ fn ray32(o: V3<f64>, d: V3<f64>) -> Ray<f32> {
 
 /// A scene of just these primitives (one grey material, no lights), for the GPU.
 fn upload(ctx: &GpuContext, prims: &Primitives<f32>) -> Result<SceneBuffers, GpuError> {
-    let scene = Scene {
-        camera: Camera { eye: V3::new(0.0, 0.0, -1.0), look_at: V3::zero(), up: V3::new(0.0, 1.0, 0.0), fov_y: 45.0 },
-        image: ImageSize { width: 1, height: 1 },
-        render: RenderSettings::default(),
-        materials: vec![Material::default_grey()],
-        objects: Vec::new(),
-        lights: Vec::new(),
-        textures: Vec::new(),
-        environment: None,
-        warnings: Vec::new(),
-    };
+    let camera = Camera { eye: V3::new(0.0, 0.0, -1.0), look_at: V3::zero(), up: V3::new(0.0, 1.0, 0.0), fov_y: 45.0 };
+    let scene = Scene::empty(camera, ImageSize { width: 1, height: 1 });
     SceneBuffers::upload(ctx, &FlatScene::new(&scene, prims, &Bvh::build(prims)))
 }
 

@@ -349,6 +349,22 @@ impl Scene {
         file::parse(&src, path, path.parent().unwrap_or(Path::new("")))
     }
 
+    /// A scene with nothing in it but one grey material ([`Material::default_grey`]), seen
+    /// from `camera`: what procedural scenes and the Python package's scenes start from.
+    pub fn empty(camera: Camera, image: ImageSize) -> Scene {
+        Scene {
+            camera,
+            image,
+            render: RenderSettings::default(),
+            materials: vec![Material::default_grey()],
+            objects: Vec::new(),
+            lights: Vec::new(),
+            textures: Vec::new(),
+            environment: None,
+            warnings: Vec::new(),
+        }
+    }
+
     /// Total triangle count over triangles, polygons and meshes.
     pub fn triangle_count(&self) -> usize {
         self.objects

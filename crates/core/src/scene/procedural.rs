@@ -4,7 +4,7 @@
 //! `--export-obj` writes beside it. Benchmarks and tests use these to work on big scenes.
 
 use super::mesh::{self, Transform, bumpy_torus};
-use super::{Camera, Geometry, ImageSize, Light, Material, Object, RenderSettings, Scene, SceneError};
+use super::{Camera, Geometry, ImageSize, Light, Object, Scene, SceneError};
 use crate::geometry::Triangle;
 use crate::math::V3;
 use std::path::{Path, PathBuf};
@@ -49,18 +49,12 @@ fn bounds(tris: &[Triangle<f64>]) -> (V3<f64>, V3<f64>) {
 fn mesh_scene(triangles: Vec<Triangle<f64>>, file: PathBuf, camera: Camera, image: ImageSize) -> Scene {
     let dir = (camera.look_at - camera.eye).normalize() + V3::new(0.0, -0.5, 0.0);
     Scene {
-        camera,
-        image,
-        render: RenderSettings::default(),
-        materials: vec![Material::default_grey()],
         objects: vec![Object {
             geometry: Geometry::Mesh { file, triangles, attrs: Default::default(), materials: Vec::new() },
             material: 0,
         }],
         lights: vec![Light::Directional { direction: dir.normalize(), intensity: [1.0; 3] }],
-        textures: Vec::new(),
-        environment: None,
-        warnings: Vec::new(),
+        ..Scene::empty(camera, image)
     }
 }
 
