@@ -239,6 +239,21 @@ impl WideBvh {
         unsafe { &*self.nodes.as_ptr().cast::<u8>().add(word as usize * 8).cast::<WideNode>() }
     }
 
+    /// Asks for the cache lines of what child word `word` names, ahead of its visit: the four
+    /// lines of a node, or the first two blocks of a leaf (a hint; nothing where unsupported).
+    #[inline(always)]
+    pub fn prefetch_word(&self, word: u32) {
+        let (start, len) = if word & LEAF_BIT == 0 {
+            (self.nodes.as_ptr().cast::<u8>().wrapping_add(word as usize * 8), size_of::<WideNode>())
+        } else {
+            let (first, count, _) = leaf_blocks(word);
+            (self.blocks.as_ptr().wrapping_add(first).cast::<u8>(), count.min(2) * size_of::<LeafBlock>())
+        };
+        for offset in (0..len).step_by(64) {
+            prefetch_address(start.wrapping_add(offset));
+        }
+    }
+
     /// Bytes held: nodes and leaf blocks (the blocks carry the triangles' vertices and
     /// references, so this is the whole of what the CPU walk reads but for spheres and
     /// cylinders).
@@ -513,10 +528,17 @@ fn set_box(node: &mut WideNode, slot: usize, lo: [f32; 3], hi: [f32; 3]) {
 /// Asks for the cache line at `p` ahead of its use (a hint; nothing where unsupported).
 #[inline(always)]
 pub fn prefetch<T>(p: &T) {
+    prefetch_address((p as *const T).cast());
+}
+
+/// Asks for the cache line holding `p`, which need not point into anything: a prefetch never
+/// faults, so no address is read or written.
+#[inline(always)]
+fn prefetch_address(p: *const u8) {
     #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch never faults; SSE is part of x86-64.
+    // SAFETY: a prefetch never faults, whatever the address; SSE is part of x86-64.
     unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>((p as *const T).cast())
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast())
     };
     #[cfg(not(target_arch = "x86_64"))]
     let _ = p;
