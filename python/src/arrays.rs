@@ -11,7 +11,7 @@ use pyo3::prelude::*;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use strahl_core::math::{Ray, V3};
-use strahl_core::query::{RayQuery, unit_direction};
+use strahl_core::query::{RayQuery, unit_and_length};
 
 /// How the caller names an array and indexes its rows.
 #[derive(Clone, Debug)]
@@ -104,7 +104,7 @@ pub fn contiguous<'a, T: numpy::Element>(a: &'a PyReadonlyArray1<'_, T>) -> PyRe
 }
 
 /// One ray as strahl traces it, from a row `ox, oy, oz, dx, dy, dz` in any units: the
-/// direction normalised in f64 as `strahl trace` does ([`unit_direction`]), and its length
+/// direction normalised in f64 as `strahl trace` does ([`unit_and_length`]), and its length
 /// kept, so that distances go back to the caller in units of its direction (Open3D's `t_hit`).
 #[derive(Clone, Copy, Debug)]
 pub struct RayIn {
@@ -122,18 +122,9 @@ impl RayIn {
         if !r.iter().all(|x| x.is_finite()) {
             return Err("NaN or infinity in a ray: all six values (ox, oy, oz, dx, dy, dz) must be finite");
         }
-        let d = V3::new(r[3], r[4], r[5]);
-        // unit_direction's operations, in its order (so that the direction is the one `strahl
-        // trace` traces, bit for bit), keeping the length it finds on the way: scaled by the
-        // largest component, neither 1e300 nor 1e-300 over- or underflows.
-        let m = d.abs().max_component();
-        if !(m > 0.0) {
-            return Err("the direction (dx, dy, dz) is zero");
-        }
-        let s = d / m;
-        let l = s.length();
-        debug_assert_eq!(Some(s / l), unit_direction(d));
-        Ok(Self { origin: V3::new(r[0], r[1], r[2]), dir: s / l, length: l * m })
+        // As `strahl trace` normalises it (bit for bit), keeping the length.
+        let (dir, length) = unit_and_length(V3::new(r[3], r[4], r[5])).ok_or("the direction (dx, dy, dz) is zero")?;
+        Ok(Self { origin: V3::new(r[0], r[1], r[2]), dir, length })
     }
 
     /// Rounded to f32, exactly as `RayQuery::ray::<f32>` rounds it.

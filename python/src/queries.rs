@@ -10,8 +10,7 @@ use crate::arrays::{CHUNK, RayChunks, RayIn};
 use crate::scene::{Built, INVALID_ID};
 use rayon::prelude::*;
 use std::sync::Arc;
-use strahl_core::accel::wide::prefetch;
-use strahl_core::accel::{traverse, wide_traverse};
+use strahl_core::accel::{HitTriangle, traverse, wide_traverse};
 use strahl_core::geometry::Triangle;
 use strahl_core::math::{Ray, Real, V3};
 use strahl_core::primitives::{Hit, PrimKind, Primitives};
@@ -80,31 +79,18 @@ pub fn barycentric(tri: &Triangle<f64>, p: V3<f64>) -> [f64; 2] {
 /// A strahl hit as an [`Answer`] for `ray`; `prims` gives the triangle for its (u, v).
 #[inline(always)]
 pub fn answer<R: Real>(built: &Built, prims: &Primitives<R>, ray: &RayIn, hit: &Hit<R>) -> Answer {
-    let t = hit.t.to_f64();
-    let (geometry, primitive) = built.ids(hit.tag);
-    let uv = match hit.prim_ref.kind() {
-        PrimKind::Triangle => {
-            let tri = prims.triangles[hit.prim_ref.index()].shape.cast::<f64>();
-            barycentric(&tri, ray.origin + ray.dir * t)
-        }
-        _ => [0.0, 0.0],
-    };
-    let n = hit.normal.to_f64();
-    Answer { t: t / ray.length, geometry, primitive, uv, normal: [n.x, n.y, n.z] }
+    let triangle = (hit.prim_ref.kind() == PrimKind::Triangle).then(|| &prims.triangles[hit.prim_ref.index()].shape);
+    answer_on(built, triangle, ray, hit)
 }
 
-/// How many hits ahead [`prefetch_triangle`] asks for the triangle: enough to overlap the
-/// misses, few enough to keep them in L1. Measured in the book's Python chapter.
-const PREFETCH_AHEAD: usize = 16;
-
-/// Asks for the cache lines of the triangle `hit` names, if it is one.
+/// A strahl hit as an [`Answer`] for `ray`, with its triangle (None for other shapes).
 #[inline(always)]
-fn prefetch_triangle(prims: &Primitives<f32>, hit: &Hit<f32>) {
-    if hit.prim_ref.kind() == PrimKind::Triangle {
-        let t = &prims.triangles[hit.prim_ref.index()];
-        prefetch(t);
-        prefetch(&t.tag);
-    }
+fn answer_on<R: Real>(built: &Built, triangle: Option<&Triangle<R>>, ray: &RayIn, hit: &Hit<R>) -> Answer {
+    let t = hit.t.to_f64();
+    let (geometry, primitive) = built.ids(hit.tag);
+    let uv = triangle.map_or([0.0, 0.0], |tri| barycentric(&tri.cast::<f64>(), ray.origin + ray.dir * t));
+    let n = hit.normal.to_f64();
+    Answer { t: t / ray.length, geometry, primitive, uv, normal: [n.x, n.y, n.z] }
 }
 
 /// `cast_rays`' outputs, one entry (or 2, or 3) per ray.
@@ -209,15 +195,12 @@ where
     match engine {
         Engine::Cpu32 => for_chunks(rays, out.slices(), |r, mut s| {
             let rays32: Vec<Ray<f32>> = r.iter().map(RayIn::ray32).collect();
-            let mut hits = vec![None; r.len()];
+            // The hit triangles come with the hits, from the walk's copies in the leaves:
+            // (u, v) needs no second load from the scene's array (a cache miss per ray).
+            let mut hits = vec![HitTriangle::default(); r.len()];
             wide_traverse::nearest_many(&built.prep.wide, prims, &rays32, 0.0, f32::INFINITY, &mut hits);
             for (k, h) in hits.iter().enumerate() {
-                // The walk took the triangle from its copy in a leaf; (u, v) needs it from
-                // the scene's array, a cache miss in a large mesh: asked for ahead.
-                if let Some(Some(ahead)) = hits.get(k + PREFETCH_AHEAD) {
-                    prefetch_triangle(prims, ahead);
-                }
-                s.set(k, h.as_ref().map(|h| answer(built, prims, &r[k], h)));
+                s.set(k, h.hit.as_ref().map(|hit| answer_on(built, h.triangle.as_ref(), &r[k], hit)));
             }
         }),
         Engine::Cpu64 => {

@@ -16,4 +16,5 @@ pub mod wide;
 pub mod wide_traverse;
 
 pub use bvh::{Bvh, BvhNode};
+pub use record::{HitTriangle, NearestRecord};
 pub use wide::WideBvh;
