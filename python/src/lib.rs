@@ -41,6 +41,56 @@ macro_rules! with_rays {
     };
 }
 
+/// Runs `queries::$query` (generic over the rays' and the outputs' float types) on `$rays` in
+/// the scene's precision: its outputs as a dict of numpy arrays ([`Outputs`]).
+macro_rules! dict_query {
+    ($self:ident, $py:ident, $rays:ident, $lead:ident, $query:ident) => {{
+        let rows = Rows::new("rays", $lead);
+        let floats = Floats::extract($rays, &rows, 6)?;
+        let d = PyDict::new($py);
+        if $self.f64 {
+            dict_query!(@run $self, $py, floats, rows, $query, f64).put(&d)?;
+        } else {
+            dict_query!(@run $self, $py, floats, rows, $query, f32).put(&d)?;
+        }
+        Ok(d)
+    }};
+    (@run $self:ident, $py:ident, $floats:ident, $rows:ident, $query:ident, $f:ty) => {
+        with_rays!($floats, chunks => {
+            let out = $self.run($py, |b, e| queries::$query::<_, $f>(b, e, &chunks))?;
+            chunks.check(&$rows)?;
+            out
+        })
+    };
+}
+
+/// A query's outputs, put into a dict of numpy arrays under Open3D's names.
+trait Outputs {
+    fn put(self, d: &Bound<'_, PyDict>) -> PyResult<()>;
+}
+
+impl<F: queries::OutFloat> Outputs for queries::Nearest<F> {
+    fn put(self, d: &Bound<'_, PyDict>) -> PyResult<()> {
+        set(d, "t_hit", self.t_hit)?;
+        set(d, "geometry_ids", self.geometry_ids)?;
+        set(d, "primitive_ids", self.primitive_ids)?;
+        set(d, "primitive_uvs", self.primitive_uvs)?;
+        set(d, "primitive_normals", self.primitive_normals)
+    }
+}
+
+impl<F: queries::OutFloat> Outputs for queries::AllHits<F> {
+    fn put(self, d: &Bound<'_, PyDict>) -> PyResult<()> {
+        set(d, "ray_splits", self.splits)?;
+        set(d, "ray_ids", self.ray_ids)?;
+        set(d, "t_hit", self.t_hit)?;
+        set(d, "geometry_ids", self.geometry_ids)?;
+        set(d, "primitive_ids", self.primitive_ids)?;
+        set(d, "primitive_uvs", self.primitive_uvs)?;
+        set(d, "primitive_normals", self.primitive_normals)
+    }
+}
+
 /// A scene to query: triangles, spheres and cylinders, or a scene file.
 #[pyclass(module = "strahl._strahl", name = "Scene", frozen)]
 struct PyScene {
@@ -185,29 +235,7 @@ impl PyScene {
         rays: &Bound<'py, PyAny>,
         lead: Vec<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let rows = Rows::new("rays", lead);
-        let floats = Floats::extract(rays, &rows, 6)?;
-        let d = PyDict::new(py);
-        macro_rules! nearest {
-            ($f:ty) => {{
-                let out = with_rays!(floats, chunks => {
-                    let out = self.run(py, |b, e| queries::cast_rays::<_, $f>(b, e, &chunks))?;
-                    chunks.check(&rows)?;
-                    out
-                });
-                set(&d, "t_hit", out.t_hit)?;
-                set(&d, "geometry_ids", out.geometry_ids)?;
-                set(&d, "primitive_ids", out.primitive_ids)?;
-                set(&d, "primitive_uvs", out.primitive_uvs)?;
-                set(&d, "primitive_normals", out.primitive_normals)?;
-            }};
-        }
-        if self.f64 {
-            nearest!(f64)
-        } else {
-            nearest!(f32)
-        }
-        Ok(d)
+        dict_query!(self, py, rays, lead, cast_rays)
     }
 
     fn test_occlusions<'py>(
@@ -257,31 +285,7 @@ impl PyScene {
         rays: &Bound<'py, PyAny>,
         lead: Vec<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let rows = Rows::new("rays", lead);
-        let floats = Floats::extract(rays, &rows, 6)?;
-        let d = PyDict::new(py);
-        macro_rules! all {
-            ($f:ty) => {{
-                let out = with_rays!(floats, chunks => {
-                    let out = self.run(py, |b, e| queries::list_intersections::<_, $f>(b, e, &chunks))?;
-                    chunks.check(&rows)?;
-                    out
-                });
-                set(&d, "ray_splits", out.splits)?;
-                set(&d, "ray_ids", out.ray_ids)?;
-                set(&d, "t_hit", out.t_hit)?;
-                set(&d, "geometry_ids", out.geometry_ids)?;
-                set(&d, "primitive_ids", out.primitive_ids)?;
-                set(&d, "primitive_uvs", out.primitive_uvs)?;
-                set(&d, "primitive_normals", out.primitive_normals)?;
-            }};
-        }
-        if self.f64 {
-            all!(f64)
-        } else {
-            all!(f32)
-        }
-        Ok(d)
+        dict_query!(self, py, rays, lead, list_intersections)
     }
 
     /// Renders the scene: (flat float32 pixels, where it rendered).
