@@ -128,17 +128,26 @@ pub fn trace<R: crate::math::Real>(
     rays: &[crate::query::RayQuery],
     all: bool,
 ) -> Vec<Vec<crate::primitives::Hit<R>>> {
-    use crate::accel::{Bvh, WideBvh, traverse, wide_traverse};
+    use crate::accel::{Bvh, WideBvh, traverse, wide_all, wide_traverse};
     use crate::primitives::{Hit, Primitives};
     use std::any::Any;
     let prims = Primitives::<R>::from_scene(scene);
     let bvh = Bvh::build(&prims);
-    // Nearest hits in f32 take the CPU's 8-wide walk (the same answers, faster).
-    if let (false, Some(p32)) = (all, (&prims as &dyn Any).downcast_ref::<Primitives<f32>>()) {
+    // Queries in f32 take the CPU's 8-wide walks (the same answers, faster).
+    if let Some(p32) = (&prims as &dyn Any).downcast_ref::<Primitives<f32>>() {
         let wide = WideBvh::new(&bvh, p32);
         let hits: Vec<Vec<Hit<f32>>> = rays
             .par_iter()
-            .map(|q| wide_traverse::nearest(&wide, p32, &q.ray(), q.tmin as f32, q.tmax as f32).into_iter().collect())
+            .map(|q| {
+                let (ray, tmin, tmax) = (q.ray(), q.tmin as f32, q.tmax as f32);
+                if all {
+                    let mut hits = Vec::new();
+                    wide_all::all(&wide, p32, &ray, tmin, tmax, &mut hits);
+                    hits
+                } else {
+                    wide_traverse::nearest(&wide, p32, &ray, tmin, tmax).into_iter().collect()
+                }
+            })
             .collect();
         let hits: Box<dyn Any> = Box::new(hits);
         return *hits.downcast::<Vec<Vec<Hit<R>>>>().expect("R is f32 here");

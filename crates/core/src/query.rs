@@ -172,6 +172,7 @@ pub fn parse_rays_from(mut reader: impl BufRead, file: &str, limit: u64) -> Resu
 
 /// `d` scaled to unit length, or None for the zero vector or one with an infinite component
 /// (callers refuse NaN before).
+#[inline]
 pub fn unit_direction(d: V3<f64>) -> Option<V3<f64>> {
     unit_and_length(d).map(|(u, _)| u)
 }
@@ -185,6 +186,7 @@ pub fn unit_direction(d: V3<f64>) -> Option<V3<f64>> {
 /// length within 7ε·|d|, about 1e-15, far below the f32 rounding the GPU's mirror applies next.
 /// (Reciprocals and products instead of the six divisions measured no faster in the Python
 /// package's `cast_rays`: the book's performance chapter.)
+#[inline]
 pub fn unit_and_length(d: V3<f64>) -> Option<(V3<f64>, f64)> {
     let m = d.abs().max_component();
     if !(m > 0.0) || !m.is_finite() {

@@ -13,6 +13,7 @@ mod record;
 pub mod simd;
 pub mod traverse;
 pub mod wide;
+pub mod wide_all;
 pub mod wide_traverse;
 
 pub use bvh::{Bvh, BvhNode};

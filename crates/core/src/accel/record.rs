@@ -63,7 +63,7 @@ impl NearestRecord for HitTriangle {
 /// triangle; `from_block`: the leaf block of the best triangle hit, if the walk kept it (its
 /// copy of the triangle gives the normal without loading the triangle again).
 #[inline(always)]
-fn hit_record<const TRIANGLE: bool>(
+pub(super) fn hit_record<const TRIANGLE: bool>(
     w: &WideBvh,
     prims: &Primitives<f32>,
     ray: &Ray<f32>,

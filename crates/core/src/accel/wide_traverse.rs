@@ -78,25 +78,25 @@ fn occluded_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32
 
 /// The deferred children: child words and their entry distances. Left uninitialised: it is
 /// a few kilobytes, and most rays use a few entries of it.
-struct Stack {
+pub(super) struct Stack {
     entry: [MaybeUninit<(u32, f32)>; STACK],
     len: usize,
 }
 
 impl Stack {
     #[inline(always)]
-    fn new() -> Self {
+    pub(super) fn new() -> Self {
         Self { entry: [const { MaybeUninit::uninit() }; STACK], len: 0 }
     }
     #[inline(always)]
-    fn push(&mut self, word: u32, t: f32) {
+    pub(super) fn push(&mut self, word: u32, t: f32) {
         // The tree's depth is at most MAX_DEPTH levels, each deferring at most WIDTH − 1.
         self.entry[self.len] = MaybeUninit::new((word, t));
         self.len += 1;
     }
     /// The most recently deferred child whose entry lies within `bound`.
     #[inline(always)]
-    fn pop_within(&mut self, bound: f32) -> Option<u32> {
+    pub(super) fn pop_within(&mut self, bound: f32) -> Option<u32> {
         while self.len > 0 {
             self.len -= 1;
             // SAFETY: entries below `len` were written by `push`.
