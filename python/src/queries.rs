@@ -10,7 +10,8 @@ use crate::arrays::{CHUNK, RayChunks, RayIn};
 use crate::scene::{Built, INVALID_ID};
 use rayon::prelude::*;
 use std::sync::Arc;
-use strahl_core::accel::{HitTriangle, huge_pages, traverse, wide_all, wide_traverse};
+use strahl_core::accel::wide::prefetch;
+use strahl_core::accel::{traverse, wide_all, wide_traverse};
 use strahl_core::geometry::Triangle;
 use strahl_core::math::{Ray, Real, V3};
 use strahl_core::primitives::{Hit, PrimKind, Primitives};
@@ -79,18 +80,31 @@ pub fn barycentric(tri: &Triangle<f64>, p: V3<f64>) -> [f64; 2] {
 /// A strahl hit as an [`Answer`] for `ray`; `prims` gives the triangle for its (u, v).
 #[inline(always)]
 pub fn answer<R: Real>(built: &Built, prims: &Primitives<R>, ray: &RayIn, hit: &Hit<R>) -> Answer {
-    let triangle = (hit.prim_ref.kind() == PrimKind::Triangle).then(|| &prims.triangles[hit.prim_ref.index()].shape);
-    answer_on(built, triangle, ray, hit)
-}
-
-/// A strahl hit as an [`Answer`] for `ray`, with its triangle (None for other shapes).
-#[inline(always)]
-fn answer_on<R: Real>(built: &Built, triangle: Option<&Triangle<R>>, ray: &RayIn, hit: &Hit<R>) -> Answer {
     let t = hit.t.to_f64();
     let (geometry, primitive) = built.ids(hit.tag);
-    let uv = triangle.map_or([0.0, 0.0], |tri| barycentric(&tri.cast::<f64>(), ray.origin + ray.dir * t));
+    let uv = match hit.prim_ref.kind() {
+        PrimKind::Triangle => {
+            let tri = prims.triangles[hit.prim_ref.index()].shape.cast::<f64>();
+            barycentric(&tri, ray.origin + ray.dir * t)
+        }
+        _ => [0.0, 0.0],
+    };
     let n = hit.normal.to_f64();
     Answer { t: t / ray.length, geometry, primitive, uv, normal: [n.x, n.y, n.z] }
+}
+
+/// How many hits ahead [`prefetch_triangle`] asks for the triangle: enough to overlap the
+/// misses, few enough to keep them in L1. Measured in the book's Python chapter.
+const PREFETCH_AHEAD: usize = 16;
+
+/// Asks for the cache lines of the triangle `hit` names, if it is one.
+#[inline(always)]
+fn prefetch_triangle(prims: &Primitives<f32>, hit: &Hit<f32>) {
+    if hit.prim_ref.kind() == PrimKind::Triangle {
+        let t = &prims.triangles[hit.prim_ref.index()];
+        prefetch(t);
+        prefetch(&t.tag);
+    }
 }
 
 /// `cast_rays`' outputs, one entry (or 2, or 3) per ray.
@@ -132,24 +146,15 @@ impl<F: OutFloat> NearestSlice<'_, F> {
     }
 }
 
-/// `n` copies of `x`, in memory advised for huge pages: fresh output arrays, each page of
-/// which the kernel would otherwise fault in and clear 4 KiB at a time (for a million rays,
-/// some 8,000 faults, as long as tracing miss rays takes).
-fn filled<T: Clone>(n: usize, x: T) -> Vec<T> {
-    let mut v = huge_pages::vec_with_capacity(n);
-    v.resize(n, x);
-    v
-}
-
 impl<F: OutFloat> Nearest<F> {
     fn new(n: usize) -> Self {
         let zero = F::of(0.0);
         Self {
-            t_hit: filled(n, zero),
-            geometry_ids: filled(n, 0),
-            primitive_ids: filled(n, 0),
-            primitive_uvs: filled(2 * n, zero),
-            primitive_normals: filled(3 * n, zero),
+            t_hit: vec![zero; n],
+            geometry_ids: vec![0; n],
+            primitive_ids: vec![0; n],
+            primitive_uvs: vec![zero; 2 * n],
+            primitive_normals: vec![zero; 3 * n],
         }
     }
 
@@ -204,12 +209,15 @@ where
     match engine {
         Engine::Cpu32 => for_chunks(rays, out.slices(), |r, mut s| {
             let rays32: Vec<Ray<f32>> = r.iter().map(RayIn::ray32).collect();
-            // The hit triangles come with the hits, from the walk's copies in the leaves:
-            // (u, v) needs no second load from the scene's array (a cache miss per ray).
-            let mut hits = vec![HitTriangle::default(); r.len()];
+            let mut hits = vec![None; r.len()];
             wide_traverse::nearest_many(&built.prep.wide, prims, &rays32, 0.0, f32::INFINITY, &mut hits);
             for (k, h) in hits.iter().enumerate() {
-                s.set(k, h.hit.as_ref().map(|hit| answer_on(built, h.triangle.as_ref(), &r[k], hit)));
+                // The walk took the triangle from its copy in a leaf; (u, v) needs it from
+                // the scene's array, a cache miss in a large mesh: asked for ahead.
+                if let Some(Some(ahead)) = hits.get(k + PREFETCH_AHEAD) {
+                    prefetch_triangle(prims, ahead);
+                }
+                s.set(k, h.as_ref().map(|h| answer(built, prims, &r[k], h)));
             }
         }),
         Engine::Cpu64 => {

@@ -1,8 +1,8 @@
 //! Acceleration structure: a binned-SAH BVH over every bounded primitive, flattened depth-first
 //! ([`bvh`]), with its binary traversal loops ([`traverse`]); the same tree collapsed into the
 //! layout the GPU walks ([`gpu_bvh`]), whose walk is the twin of `shaders/modules/traverse.wgsl`; and
-//! into the 8-wide nodes the CPU renderers walk ([`wide`], [`wide_traverse`]) with
-//! lane-parallel box and triangle tests ([`simd`]).
+//! into the 8-wide nodes the CPU renderers walk ([`wide`], [`wide_traverse`]; every hit:
+//! [`wide_all`]) with lane-parallel box and triangle tests ([`simd`]).
 
 pub mod bvh;
 pub mod gpu_bvh;
@@ -17,5 +17,4 @@ pub mod wide_all;
 pub mod wide_traverse;
 
 pub use bvh::{Bvh, BvhNode};
-pub use record::{HitTriangle, NearestRecord};
 pub use wide::WideBvh;

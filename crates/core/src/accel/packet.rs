@@ -16,12 +16,12 @@
 //! so every ray gets exactly the answer of [`super::wide_traverse::nearest`], and so of brute
 //! force: same `t`, same primitive, same tie rule.
 
-use super::record::NearestRecord;
+use super::record::hit_record;
 use super::simd::{is_triangle, widen};
 use super::wide::{EMPTY_CHILD, EMPTY_PRIM, LANES, LEAF_BIT, LeafBlock, MAX_DEPTH, WIDTH, WideBvh, WideNode};
 use crate::geometry::Part;
 use crate::math::Ray;
-use crate::primitives::{Nearest, PrimRef, Primitives};
+use crate::primitives::{Hit, Nearest, PrimRef, Primitives};
 use std::arch::x86_64::*;
 use std::mem::MaybeUninit;
 
@@ -148,13 +148,13 @@ impl Lanes {
 /// # Safety
 /// The CPU must have AVX2 and FMA ([`super::simd::has_avx2`] checks both).
 #[target_feature(enable = "avx2,fma")]
-pub unsafe fn nearest_packet<O: NearestRecord>(
+pub unsafe fn nearest_packet(
     w: &WideBvh,
     prims: &Primitives<f32>,
     rays: &[Ray<f32>],
     tmin: f32,
     tmax: f32,
-    out: &mut [O],
+    out: &mut [Option<Hit<f32>>],
 ) -> bool {
     debug_assert!(tmin >= 0.0 && out.len() == rays.len());
     // SAFETY: AVX2 is present (this function's contract).
@@ -174,7 +174,7 @@ pub unsafe fn nearest_packet<O: NearestRecord>(
         unsafe { walk.run(&lanes, (1 << rays.len()) - 1) };
     }
     for (i, o) in out.iter_mut().enumerate() {
-        *o = O::record(w, prims, &rays[i], &best[i], from_block[i]);
+        *o = hit_record(w, prims, &rays[i], &best[i], from_block[i]);
     }
     true
 }
@@ -467,14 +467,6 @@ mod tests {
         for (i, (ray, got)) in rays.iter().zip(&out).enumerate() {
             assert_eq!(*got, prims.nearest_brute(ray, tmin, tmax), "ray {i} in ({tmin}, {tmax}): {ray:?}");
             hits += got.is_some() as usize;
-        }
-        // With the hit triangles (from the packets' leaf blocks): the same hits and vertices.
-        let mut with = vec![crate::accel::HitTriangle::default(); rays.len()];
-        nearest_many(&w, prims, rays, tmin, tmax, &mut with);
-        for (i, (got, hit)) in with.iter().zip(&out).enumerate() {
-            assert_eq!(got.hit, *hit, "ray {i}");
-            let triangle = hit.filter(|h| h.prim_ref.kind() == crate::primitives::PrimKind::Triangle);
-            assert_eq!(got.triangle, triangle.map(|h| prims.triangles[h.prim_ref.index()].shape), "ray {i}");
         }
         hits
     }

@@ -57,9 +57,7 @@ impl Sink for Records<'_> {
             mask &= mask - 1;
             // The record the nearest-hit walk makes, from the block's copy of the triangle.
             let hit = Nearest { t: t[lane], prim_ref: PrimRef(block.prim_ref[lane]), part: Part::Surface, found: true };
-            if let (Some(h), _) = hit_record::<false>(self.w, self.prims, self.ray, &hit, Some(block)) {
-                self.hits.push(h);
-            }
+            self.hits.extend(hit_record(self.w, self.prims, self.ray, &hit, Some(block)));
         }
     }
 

@@ -10,7 +10,7 @@
 
 #[cfg(target_arch = "x86_64")]
 use super::packet::{self, PACKET};
-use super::record::NearestRecord;
+use super::record::hit_record;
 use super::simd::{self, Kernels, RayPre, Scalar, widen};
 use super::wide::{EMPTY_PRIM, LANES, LEAF_BIT, LeafBlock, MAX_DEPTH, WIDTH, WideBvh};
 use crate::geometry::Part;
@@ -273,8 +273,8 @@ impl<'a> NearestWalk<'a> {
 
     /// The hit record of the search's result.
     #[inline(always)]
-    fn hit<O: NearestRecord>(&self) -> O {
-        O::record(self.w, self.prims, &self.pre.ray, &self.best, self.from_block)
+    fn hit(&self) -> Option<Hit<f32>> {
+        hit_record(self.w, self.prims, &self.pre.ray, &self.best, self.from_block)
     }
 }
 
@@ -301,13 +301,13 @@ fn nearest_with<K: Kernels, const NEG: bool>(
 /// so that the processor overlaps the memory latency of one with the work of the others: this
 /// pays where the tree does not fit in the caches (random rays). Both gains are in the book's
 /// performance chapter ("Design choices measured").
-pub fn nearest_many<O: NearestRecord>(
+pub fn nearest_many(
     w: &WideBvh,
     prims: &Primitives<f32>,
     rays: &[Ray<f32>],
     tmin: f32,
     tmax: f32,
-    out: &mut [O],
+    out: &mut [Option<Hit<f32>>],
 ) {
     assert_eq!(rays.len(), out.len(), "one answer per ray");
     #[cfg(target_arch = "x86_64")]
@@ -316,24 +316,24 @@ pub fn nearest_many<O: NearestRecord>(
         return unsafe { nearest_many_avx2(w, prims, rays, tmin, tmax, out) };
     }
     if tmin >= 0.0 {
-        nearest_many_with::<Scalar, false, O>(w, prims, rays, tmin, tmax, out)
+        nearest_many_with::<Scalar, false>(w, prims, rays, tmin, tmax, out)
     } else {
-        nearest_many_with::<Scalar, true, O>(w, prims, rays, tmin, tmax, out)
+        nearest_many_with::<Scalar, true>(w, prims, rays, tmin, tmax, out)
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn nearest_many_avx2<O: NearestRecord>(
+fn nearest_many_avx2(
     w: &WideBvh,
     prims: &Primitives<f32>,
     rays: &[Ray<f32>],
     tmin: f32,
     tmax: f32,
-    out: &mut [O],
+    out: &mut [Option<Hit<f32>>],
 ) {
     if tmin < 0.0 {
-        return nearest_many_with::<simd::Avx2, true, O>(w, prims, rays, tmin, tmax, out);
+        return nearest_many_with::<simd::Avx2, true>(w, prims, rays, tmin, tmax, out);
     }
     // Groups of coherent rays go through the packet walk; the runs of other groups through
     // the interleaved one-ray walks.
@@ -344,31 +344,24 @@ fn nearest_many_avx2<O: NearestRecord>(
         // SAFETY: the CPU has AVX2 (this function's feature).
         if unsafe { packet::nearest_packet(w, prims, group, tmin, tmax, &mut out[first..end]) } {
             if run < first {
-                nearest_many_with::<simd::Avx2, false, O>(
-                    w,
-                    prims,
-                    &rays[run..first],
-                    tmin,
-                    tmax,
-                    &mut out[run..first],
-                );
+                nearest_many_with::<simd::Avx2, false>(w, prims, &rays[run..first], tmin, tmax, &mut out[run..first]);
             }
             run = end;
         }
     }
     if run < rays.len() {
-        nearest_many_with::<simd::Avx2, false, O>(w, prims, &rays[run..], tmin, tmax, &mut out[run..]);
+        nearest_many_with::<simd::Avx2, false>(w, prims, &rays[run..], tmin, tmax, &mut out[run..]);
     }
 }
 
 #[inline(always)]
-fn nearest_many_with<K: Kernels, const NEG: bool, O: NearestRecord>(
+fn nearest_many_with<K: Kernels, const NEG: bool>(
     w: &WideBvh,
     prims: &Primitives<f32>,
     rays: &[Ray<f32>],
     tmin: f32,
     tmax: f32,
-    out: &mut [O],
+    out: &mut [Option<Hit<f32>>],
 ) {
     let mut walks: [NearestWalk; IN_FLIGHT] = std::array::from_fn(|_| NearestWalk::new(w, prims));
     let mut slots = [usize::MAX; IN_FLIGHT];
@@ -411,7 +404,7 @@ impl Feed<'_, '_> {
     /// Writes the answer of the stopped `walk` for ray `slot` (if any), then starts the next
     /// rays in it until one needs the tree.
     #[inline(always)]
-    fn refill<O: NearestRecord>(&mut self, walk: &mut NearestWalk, slot: &mut usize, out: &mut [O]) {
+    fn refill(&mut self, walk: &mut NearestWalk, slot: &mut usize, out: &mut [Option<Hit<f32>>]) {
         if *slot != usize::MAX {
             out[*slot] = walk.hit();
             *slot = usize::MAX;
@@ -493,10 +486,9 @@ fn occluded_with<K: Kernels, const NEG: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::accel::{Bvh, HitTriangle};
+    use crate::accel::Bvh;
     use crate::geometry::testutil::{TestRays, TestRng, ray_f32};
     use crate::math::V3;
-    use crate::primitives::PrimKind;
     use crate::primitives::testutil::mixed_scene;
 
     /// The test scene of `mixed_scene(seed)` and its wide tree.
@@ -639,19 +631,6 @@ mod tests {
             for (i, (ray, got)) in rays.iter().zip(&out).enumerate() {
                 assert_eq!(*got, prims.nearest_brute(ray, tmin, tmax), "ray {i} in ({tmin}, {tmax})");
             }
-            // With the hit triangles: the same hits, and each triangle hit's vertices.
-            let mut with = vec![HitTriangle::default(); rays.len()];
-            nearest_many(&w, &prims, &rays, tmin, tmax, &mut with);
-            let mut triangles = 0;
-            for (i, (got, hit)) in with.iter().zip(&out).enumerate() {
-                assert_eq!(got.hit, *hit, "ray {i}");
-                let expected = hit
-                    .filter(|h| h.prim_ref.kind() == PrimKind::Triangle)
-                    .map(|h| prims.triangles[h.prim_ref.index()].shape);
-                assert_eq!(got.triangle, expected, "ray {i}");
-                triangles += expected.is_some() as usize;
-            }
-            assert!(triangles > 500, "{triangles} triangle hits");
         }
         let mut none: Vec<Option<Hit<f32>>> = Vec::new();
         nearest_many(&w, &prims, &[], 0.0, 1.0, &mut none);
