@@ -1,5 +1,6 @@
 //! Every hit of a ray on the 8-wide tree ([`super::wide`]), and the number of hits: the walk
-//! of [`super::wide_traverse::occluded`] without its stop at the first hit, keeping each hit.
+//! that visits every leaf the ray meets, keeping each hit; with a stop at the first hit it is
+//! the occlusion walk ([`super::wide_traverse::occluded`]).
 //!
 //! The lane tests ([`super::simd`]) compute what the scalar routines compute, bit for bit, and
 //! the interval is the same open (tmin, tmax), so [`all`] returns exactly the hits of
@@ -32,12 +33,12 @@ pub fn count(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tm
     sink.n
 }
 
-/// What the walk does with the hits it finds.
-trait Sink {
-    /// Lanes `mask` of `block` are triangles hit at `t[lane]`.
-    fn triangles(&mut self, block: &LeafBlock, mask: u32, t: &[f32; LANES]);
+/// What the walk does with the hits it finds; true stops it.
+pub(super) trait Sink {
+    /// Lanes `mask` (not 0) of `block` are triangles hit at `t[lane]`.
+    fn triangles(&mut self, block: &LeafBlock, mask: u32, t: &[f32; LANES]) -> bool;
     /// A plane, sphere or cylinder to intersect: all of its roots in (tmin, tmax).
-    fn other(&mut self, r: PrimRef);
+    fn other(&mut self, r: PrimRef) -> bool;
 }
 
 struct Records<'a> {
@@ -51,7 +52,7 @@ struct Records<'a> {
 
 impl Sink for Records<'_> {
     #[inline(always)]
-    fn triangles(&mut self, block: &LeafBlock, mut mask: u32, t: &[f32; LANES]) {
+    fn triangles(&mut self, block: &LeafBlock, mut mask: u32, t: &[f32; LANES]) -> bool {
         while mask != 0 {
             let lane = mask.trailing_zeros() as usize;
             mask &= mask - 1;
@@ -59,11 +60,13 @@ impl Sink for Records<'_> {
             let hit = Nearest { t: t[lane], prim_ref: PrimRef(block.prim_ref[lane]), part: Part::Surface, found: true };
             self.hits.extend(hit_record(self.w, self.prims, self.ray, &hit, Some(block)));
         }
+        false
     }
 
     #[inline(always)]
-    fn other(&mut self, r: PrimRef) {
+    fn other(&mut self, r: PrimRef) -> bool {
         self.prims.collect_hits(r, self.ray, self.tmin, self.tmax, self.hits);
+        false
     }
 }
 
@@ -77,13 +80,15 @@ struct Count<'a> {
 
 impl Sink for Count<'_> {
     #[inline(always)]
-    fn triangles(&mut self, _: &LeafBlock, mask: u32, _: &[f32; LANES]) {
+    fn triangles(&mut self, _: &LeafBlock, mask: u32, _: &[f32; LANES]) -> bool {
         self.n += mask.count_ones() as usize;
+        false
     }
 
     #[inline(always)]
-    fn other(&mut self, r: PrimRef) {
+    fn other(&mut self, r: PrimRef) -> bool {
         self.n += self.prims.roots(r, self.ray, self.tmin, self.tmax).len;
+        false
     }
 }
 
@@ -93,12 +98,20 @@ fn walk(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f
     #[cfg(target_arch = "x86_64")]
     if simd::has_avx2() {
         // SAFETY: the CPU has AVX2.
-        return unsafe { walk_avx2(w, prims, ray, tmin, tmax, sink) };
+        unsafe { walk_avx2(w, prims, ray, tmin, tmax, sink) };
+        return;
     }
-    walk_scalar(w, prims, ray, tmin, tmax, sink)
+    walk_scalar(w, prims, ray, tmin, tmax, sink);
 }
 
-fn walk_scalar(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32, sink: &mut impl Sink) {
+fn walk_scalar(
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    ray: &Ray<f32>,
+    tmin: f32,
+    tmax: f32,
+    sink: &mut impl Sink,
+) -> bool {
     if tmin >= 0.0 {
         walk_with::<Scalar, false>(w, prims, ray, tmin, tmax, sink)
     } else {
@@ -108,7 +121,7 @@ fn walk_scalar(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, 
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn walk_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32, sink: &mut impl Sink) {
+fn walk_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32, sink: &mut impl Sink) -> bool {
     if tmin >= 0.0 {
         walk_with::<simd::Avx2, false>(w, prims, ray, tmin, tmax, sink)
     } else {
@@ -116,22 +129,25 @@ fn walk_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tm
     }
 }
 
-/// Visits every leaf whose box the ray meets in [tmin, tmax] (widened as the occlusion walk
-/// widens it) and hands its hits to `sink`, planes first.
+/// Visits every leaf whose box the ray meets in [tmin, tmax] (the far side widened) and hands
+/// its hits to `sink`, planes first, until the sink says stop: whether it did. The occlusion
+/// walk ([`super::wide_traverse::occluded`]) is this walk with a sink that stops at a hit.
 #[inline(always)]
-fn walk_with<K: Kernels, const NEG: bool>(
+pub(super) fn walk_with<K: Kernels, const NEG: bool>(
     w: &WideBvh,
     prims: &Primitives<f32>,
     ray: &Ray<f32>,
     tmin: f32,
     tmax: f32,
     sink: &mut impl Sink,
-) {
+) -> bool {
     for r in prims.plane_refs() {
-        sink.other(r);
+        if sink.other(r) {
+            return true;
+        }
     }
     if w.is_empty() {
-        return;
+        return false;
     }
     let pre = RayPre::new(ray);
     let tmin = tmin + 0.0; // as in the nearest-hit walk
@@ -162,13 +178,13 @@ fn walk_with<K: Kernels, const NEG: bool>(
             for block in blocks {
                 // SAFETY: as above.
                 let mask = unsafe { K::triangles(block, &pre, tmin, tmax, &mut t) };
-                if mask != 0 {
-                    sink.triangles(block, mask, &t);
+                if mask != 0 && sink.triangles(block, mask, &t) {
+                    return true;
                 }
                 if other {
                     for &p in &block.prim_ref {
-                        if p != EMPTY_PRIM && !simd::is_triangle(p) {
-                            sink.other(PrimRef(p));
+                        if p != EMPTY_PRIM && !simd::is_triangle(p) && sink.other(PrimRef(p)) {
+                            return true;
                         }
                     }
                 }
@@ -176,7 +192,7 @@ fn walk_with<K: Kernels, const NEG: bool>(
         }
         match stack.pop_within(cull) {
             Some(n) => word = n,
-            None => return,
+            None => return false,
         }
     }
 }
@@ -209,7 +225,7 @@ mod tests {
             assert_eq!(got, expected, "ray {i} in ({tmin}, {tmax})");
             assert_eq!(count(&w, &prims, &ray, tmin, tmax), expected.len(), "ray {i}");
             let mut scalar = Records { w: &w, prims: &prims, ray: &ray, tmin, tmax, hits: &mut Vec::new() };
-            walk_scalar(&w, &prims, &ray, tmin, tmax, &mut scalar);
+            assert!(!walk_scalar(&w, &prims, &ray, tmin, tmax, &mut scalar));
             sort_hits(scalar.hits);
             assert_eq!(*scalar.hits, expected, "ray {i}, portable lanes");
             rays += 1;

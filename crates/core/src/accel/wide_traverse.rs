@@ -13,6 +13,7 @@ use super::packet::{self, PACKET};
 use super::record::hit_record;
 use super::simd::{self, Kernels, RayPre, Scalar, widen};
 use super::wide::{EMPTY_PRIM, LANES, LEAF_BIT, LeafBlock, MAX_DEPTH, WIDTH, WideBvh};
+use super::wide_all;
 use crate::geometry::Part;
 use crate::math::Ray;
 use crate::math::V3;
@@ -422,6 +423,7 @@ impl Feed<'_, '_> {
     }
 }
 
+/// The walk of every hit ([`wide_all::walk_with`]), stopped by the first.
 #[inline(always)]
 fn occluded_with<K: Kernels, const NEG: bool>(
     w: &WideBvh,
@@ -430,57 +432,23 @@ fn occluded_with<K: Kernels, const NEG: bool>(
     tmin: f32,
     tmax: f32,
 ) -> bool {
-    if prims.plane_refs().any(|r| prims.roots(r, ray, tmin, tmax).len > 0) {
-        return true;
+    struct AnyHit<'a> {
+        prims: &'a Primitives<f32>,
+        ray: &'a Ray<f32>,
+        tmin: f32,
+        tmax: f32,
     }
-    if w.is_empty() {
-        return false;
-    }
-    let pre = RayPre::new(ray);
-    let tmin = tmin + 0.0; // as in NearestWalk::start
-    let mut stack = Stack::new();
-    let cull = widen(tmax);
-    let mut word = 0u32;
-    let mut tnear = [0.0f32; WIDTH];
-    let mut t = [0.0f32; LANES];
-    loop {
-        if word & LEAF_BIT == 0 {
-            let node = w.node(word);
-            // SAFETY: K's features are present (the caller dispatched on them).
-            let mut mask = unsafe { K::boxes::<NEG>(node, &pre, tmin, cull, &mut tnear) };
-            if mask != 0 {
-                // Order does not matter for "any hit": take the children as they come.
-                let first = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                while mask != 0 {
-                    let i = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    stack.push(node.child[i], tnear[i]);
-                }
-                word = node.child[first];
-                continue;
-            }
-        } else {
-            let (blocks, other) = w.leaf(word);
-            for block in blocks {
-                // SAFETY: as above.
-                if unsafe { K::triangles(block, &pre, tmin, tmax, &mut t) } != 0 {
-                    return true;
-                }
-                if other
-                    && block.prim_ref.iter().any(|&p| {
-                        p != EMPTY_PRIM && !simd::is_triangle(p) && prims.roots(PrimRef(p), ray, tmin, tmax).len > 0
-                    })
-                {
-                    return true;
-                }
-            }
+    impl wide_all::Sink for AnyHit<'_> {
+        #[inline(always)]
+        fn triangles(&mut self, _: &LeafBlock, _: u32, _: &[f32; LANES]) -> bool {
+            true
         }
-        match stack.pop_within(cull) {
-            Some(n) => word = n,
-            None => return false,
+        #[inline(always)]
+        fn other(&mut self, r: PrimRef) -> bool {
+            self.prims.roots(r, self.ray, self.tmin, self.tmax).len > 0
         }
     }
+    wide_all::walk_with::<K, NEG>(w, prims, ray, tmin, tmax, &mut AnyHit { prims, ray, tmin, tmax })
 }
 
 #[cfg(test)]
