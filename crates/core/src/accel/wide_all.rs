@@ -7,15 +7,57 @@
 //! [`super::traverse::all`] on the binary tree (and of [`Primitives::all_brute`]), in the same
 //! order: the same `t`, the same primitives, each edge or vertex shared by triangles counted by
 //! one of them (the watertight test's tie rule). What it saves is the binary walk's one box and
-//! one triangle at a time: eight boxes and four triangles per step here.
+//! one triangle at a time: eight boxes and four triangles per step here. The walks of the wide
+//! tree share its stack ([`Stack`]).
 
 use super::record::hit_record;
 use super::simd::{self, Kernels, RayPre, Scalar, widen};
-use super::wide::{EMPTY_PRIM, LANES, LEAF_BIT, LeafBlock, WIDTH, WideBvh};
-use super::wide_traverse::Stack;
+use super::wide::{EMPTY_PRIM, LANES, LEAF_BIT, LeafBlock, MAX_DEPTH, WIDTH, WideBvh};
 use crate::geometry::Part;
 use crate::math::Ray;
 use crate::primitives::{Hit, Nearest, PrimRef, Primitives, sort_hits};
+use std::mem::MaybeUninit;
+
+/// Room for the children a walk defers: at most seven per level.
+const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
+
+/// The deferred children: child words and their entry distances. Left uninitialised: it is
+/// a few kilobytes, and most rays use a few entries of it.
+pub(super) struct Stack {
+    entry: [MaybeUninit<(u32, f32)>; STACK],
+    len: usize,
+}
+
+impl Stack {
+    #[inline(always)]
+    pub(super) fn new() -> Self {
+        Self { entry: [const { MaybeUninit::uninit() }; STACK], len: 0 }
+    }
+    /// Empties it, for the next ray.
+    #[inline(always)]
+    pub(super) fn clear(&mut self) {
+        self.len = 0;
+    }
+    #[inline(always)]
+    pub(super) fn push(&mut self, word: u32, t: f32) {
+        // The tree's depth is at most MAX_DEPTH levels, each deferring at most WIDTH − 1.
+        self.entry[self.len] = MaybeUninit::new((word, t));
+        self.len += 1;
+    }
+    /// The most recently deferred child whose entry lies within `bound`.
+    #[inline(always)]
+    pub(super) fn pop_within(&mut self, bound: f32) -> Option<u32> {
+        while self.len > 0 {
+            self.len -= 1;
+            // SAFETY: entries below `len` were written by `push`.
+            let (word, t) = unsafe { self.entry[self.len].assume_init() };
+            if t <= bound {
+                return Some(word);
+            }
+        }
+        None
+    }
+}
 
 /// Every hit in (tmin, tmax) into `hits` (emptied first), sorted as [`Primitives::all_brute`]
 /// sorts them. `hits` keeps its room from ray to ray.

@@ -12,16 +12,12 @@
 use super::packet::{self, PACKET};
 use super::record::hit_record;
 use super::simd::{self, Kernels, RayPre, Scalar, widen};
-use super::wide::{EMPTY_PRIM, LANES, LEAF_BIT, LeafBlock, MAX_DEPTH, WIDTH, WideBvh};
-use super::wide_all;
+use super::wide::{EMPTY_PRIM, LANES, LEAF_BIT, LeafBlock, WIDTH, WideBvh};
+use super::wide_all::{self, Stack};
 use crate::geometry::Part;
 use crate::math::Ray;
 use crate::math::V3;
 use crate::primitives::{Hit, Nearest, PrimRef, Primitives};
-use std::mem::MaybeUninit;
-
-/// Room for the children a walk defers: at most seven per level.
-const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 
 /// The nearest hit in (tmin, tmax), identical to [`Primitives::nearest_brute`].
 pub fn nearest(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32) -> Option<Hit<f32>> {
@@ -74,39 +70,6 @@ fn occluded_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32
         occluded_with::<simd::Avx2, false>(w, prims, ray, tmin, tmax)
     } else {
         occluded_with::<simd::Avx2, true>(w, prims, ray, tmin, tmax)
-    }
-}
-
-/// The deferred children: child words and their entry distances. Left uninitialised: it is
-/// a few kilobytes, and most rays use a few entries of it.
-pub(super) struct Stack {
-    entry: [MaybeUninit<(u32, f32)>; STACK],
-    len: usize,
-}
-
-impl Stack {
-    #[inline(always)]
-    pub(super) fn new() -> Self {
-        Self { entry: [const { MaybeUninit::uninit() }; STACK], len: 0 }
-    }
-    #[inline(always)]
-    pub(super) fn push(&mut self, word: u32, t: f32) {
-        // The tree's depth is at most MAX_DEPTH levels, each deferring at most WIDTH − 1.
-        self.entry[self.len] = MaybeUninit::new((word, t));
-        self.len += 1;
-    }
-    /// The most recently deferred child whose entry lies within `bound`.
-    #[inline(always)]
-    pub(super) fn pop_within(&mut self, bound: f32) -> Option<u32> {
-        while self.len > 0 {
-            self.len -= 1;
-            // SAFETY: entries below `len` were written by `push`.
-            let (word, t) = unsafe { self.entry[self.len].assume_init() };
-            if t <= bound {
-                return Some(word);
-            }
-        }
-        None
     }
 }
 
@@ -209,7 +172,7 @@ impl<'a> NearestWalk<'a> {
         self.word = 0; // the root node
         self.running = !self.w.is_empty();
         self.from_block = None;
-        self.stack.len = 0;
+        self.stack.clear();
     }
 
     /// Visits the next node or leaf; false once the search is over.
