@@ -154,20 +154,29 @@ fn walk_scalar(
     tmax: f32,
     sink: &mut impl Sink,
 ) -> bool {
-    if tmin >= 0.0 {
-        walk_with::<Scalar, false>(w, prims, ray, tmin, tmax, sink)
-    } else {
-        walk_with::<Scalar, true>(w, prims, ray, tmin, tmax, sink)
-    }
+    walk_signed::<Scalar>(w, prims, ray, tmin, tmax, sink)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn walk_avx2(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32, sink: &mut impl Sink) -> bool {
+    walk_signed::<simd::Avx2>(w, prims, ray, tmin, tmax, sink)
+}
+
+/// [`walk_with`] with the box test for tmin ≥ 0 or for a negative tmin.
+#[inline(always)]
+fn walk_signed<K: Kernels>(
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    ray: &Ray<f32>,
+    tmin: f32,
+    tmax: f32,
+    sink: &mut impl Sink,
+) -> bool {
     if tmin >= 0.0 {
-        walk_with::<simd::Avx2, false>(w, prims, ray, tmin, tmax, sink)
+        walk_with::<K, false>(w, prims, ray, tmin, tmax, sink)
     } else {
-        walk_with::<simd::Avx2, true>(w, prims, ray, tmin, tmax, sink)
+        walk_with::<K, true>(w, prims, ray, tmin, tmax, sink)
     }
 }
 
