@@ -226,8 +226,9 @@ mod tests {
         assert_eq!((r[0].tmin, r[0].tmax), (0.0, 5.0));
     }
 
-    /// The unit vector and length agree with d / |d| (|d| computed apart, itself within 5ε where the squares stay in range) to
-    /// the error bound unit_and_length states, over directions of every magnitude.
+    /// The unit vector and length agree with d / |d| (|d| computed apart, itself within 5ε
+    /// where the squares stay in range) to the error bound unit_and_length states, over
+    /// directions of every magnitude.
     #[test]
     fn unit_and_length_is_within_its_error_bound() {
         const EPS: f64 = f64::EPSILON / 2.0;
