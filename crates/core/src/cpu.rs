@@ -1,13 +1,32 @@
 //! The CPU backend: the f32 mirror of the GPU, run with rayon over image rows.
 
+use crate::accel::bundle::Isa;
 use crate::image::{Image, Region};
 use crate::layout::FrameParams;
+use crate::math::V3;
 use crate::render::shade::ShadeInputs;
-use crate::render::{Prepared, path, shade};
+use crate::render::{Prepared, lanes, path, shade};
 use crate::scene::RenderMode;
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Which CPU path tracer renders path mode. Both give the same image, bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathTracer {
+    /// Many paths at a time, their rays in bundles of SIMD lanes ([`crate::render::lanes`]):
+    /// the default, with the widest lanes this processor has.
+    Lanes(Isa),
+    /// One path at a time ([`crate::render::path`], the WGSL megakernel's mirror): the
+    /// reference the lane tracer is tested against.
+    OneByOne,
+}
+
+impl Default for PathTracer {
+    fn default() -> Self {
+        PathTracer::Lanes(Isa::detect())
+    }
+}
 
 /// Renders the image described by `frame` (its `width`, `height`, `spp`, `sample_base`) in
 /// `mode`. `progress` is called with the number of rows finished so far, from worker threads.
@@ -26,24 +45,57 @@ pub fn render_region(
     region: Region,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Image {
+    render_region_with(prep, frame, mode, region, PathTracer::default(), progress)
+}
+
+/// [`render_region`] with path mode traced by `tracer`.
+pub fn render_region_with(
+    prep: &Prepared,
+    frame: &FrameParams,
+    mode: RenderMode,
+    region: Region,
+    tracer: PathTracer,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Image {
     assert!(region.fits(frame.width, frame.height), "region {region} of a {}x{} image", frame.width, frame.height);
     let inputs = ShadeInputs { prims: &prep.prims, wide: &prep.wide, gpu: &prep.gpu, frame };
-    let shade_pixel = match mode {
-        RenderMode::Whitted => shade::shade_pixel,
-        RenderMode::Path => path::shade_pixel,
-    };
     let mut img = Image::new(region.width(), region.height());
     if img.pixels.is_empty() {
         return img;
     }
     let done = AtomicU64::new(0);
-    img.pixels.par_chunks_mut(region.width() as usize).enumerate().for_each(|(dy, row)| {
-        let y = region.y0 + dy as u32;
-        for (dx, px) in row.iter_mut().enumerate() {
-            *px = shade_pixel(&inputs, region.x0 + dx as u32, y);
+    let rows = img.pixels.par_chunks_mut(region.width() as usize).enumerate();
+    match (mode, tracer) {
+        (RenderMode::Path, PathTracer::Lanes(isa)) => {
+            let samples = frame.sample_base..frame.sample_base + frame.spp;
+            rows.for_each_init(
+                || (lanes::Tracer::new(isa, false), Vec::new()),
+                |(tracer, sums), (dy, row)| {
+                    sums.clear();
+                    sums.resize(row.len(), V3::zero());
+                    let y = region.y0 + dy as u32;
+                    tracer.row(&inputs, y, region.x0, row.len() as u32, samples.clone(), &mut |x, c| sums[x] += c);
+                    for (px, sum) in row.iter_mut().zip(sums.iter()) {
+                        *px = (*sum / frame.spp as f32).to_array();
+                    }
+                    progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+                },
+            );
         }
-        progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-    });
+        _ => {
+            let shade_pixel = match mode {
+                RenderMode::Whitted => shade::shade_pixel,
+                RenderMode::Path => path::shade_pixel,
+            };
+            rows.for_each(|(dy, row)| {
+                let y = region.y0 + dy as u32;
+                for (dx, px) in row.iter_mut().enumerate() {
+                    *px = shade_pixel(&inputs, region.x0 + dx as u32, y);
+                }
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+            });
+        }
+    }
     img
 }
 

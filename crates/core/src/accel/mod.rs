@@ -4,6 +4,7 @@
 //! into the 8-wide nodes the CPU renderers walk ([`wide`], [`wide_traverse`]; every hit:
 //! [`wide_all`]) with lane-parallel box and triangle tests ([`simd`]).
 
+pub mod bundle;
 pub mod bvh;
 pub mod gpu_bvh;
 pub mod huge_pages;

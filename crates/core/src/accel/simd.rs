@@ -60,7 +60,7 @@ const PARALLEL_INV: f32 = f32::INFINITY;
 
 /// The shift of [`PARALLEL_INV`]: 2⁻¹⁶ of the coordinate (many ulps, so the moved origin
 /// differs from the origin), at least 10⁻⁶.
-fn parallel_shift(o: f32) -> f32 {
+pub(super) fn parallel_shift(o: f32) -> f32 {
     (o.abs() * (1.0 / 65536.0)).max(1e-6)
 }
 

@@ -258,6 +258,35 @@ fn nearest_with<K: Kernels, const NEG: bool>(
     walk.hit()
 }
 
+/// Goes on with a nearest-hit search in (0, ∞) for `pre`'s ray from child word `word`, with
+/// `best` the best hit so far (updated): the bundle walk's ending for a subtree that few of
+/// its lanes enter ([`super::bundle`]).
+#[inline(always)]
+pub(super) fn nearest_from<K: Kernels>(
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    pre: &RayPre,
+    word: u32,
+    best: &mut Nearest<f32>,
+) {
+    let bound = best.search_bound();
+    let mut walk = NearestWalk {
+        w,
+        prims,
+        pre: *pre,
+        tmin: 0.0,
+        best: *best,
+        bound,
+        cull: widen(bound),
+        word,
+        running: true,
+        from_block: None,
+        stack: Stack::new(),
+    };
+    while walk.step::<K, false>() {}
+    *best = walk.best;
+}
+
 /// [`nearest`] for each of `rays` in (tmin, tmax), into `out` (as long as `rays`); the
 /// answers are those of [`nearest`]. With AVX2 and tmin ≥ 0, each group of eight coherent
 /// rays (a camera's neighbours) is walked as one packet ([`packet`]), which shares each node's

@@ -10,6 +10,7 @@ pub mod camera;
 pub mod emitters;
 pub mod environment;
 pub mod flatten;
+pub mod lanes;
 pub mod microfacet;
 pub mod path;
 pub mod pbr;
