@@ -23,8 +23,15 @@ pub enum PathTracer {
 }
 
 impl Default for PathTracer {
+    /// The lanes, unless STRAHL_CPU_TRACER says `one-by-one` (or names lanes: `avx512`,
+    /// `avx2`, `portable`), for comparisons from the command line.
     fn default() -> Self {
-        PathTracer::Lanes(Isa::detect())
+        match std::env::var("STRAHL_CPU_TRACER").as_deref() {
+            Ok("one-by-one") => PathTracer::OneByOne,
+            Ok("avx2") if Isa::Avx2.runs_here() => PathTracer::Lanes(Isa::Avx2),
+            Ok("portable") => PathTracer::Lanes(Isa::Portable),
+            _ => PathTracer::Lanes(Isa::detect()),
+        }
     }
 }
 
@@ -68,8 +75,9 @@ pub fn render_region_with(
     match (mode, tracer) {
         (RenderMode::Path, PathTracer::Lanes(isa)) => {
             let samples = frame.sample_base..frame.sample_base + frame.spp;
+            let facts = lanes::Facts::new(&prep.gpu, frame.num_lights);
             rows.for_each_init(
-                || (lanes::Tracer::new(isa, false), Vec::new()),
+                || (lanes::Tracer::new(isa, &facts, false), Vec::new()),
                 |(tracer, sums), (dy, row)| {
                     sums.clear();
                     sums.resize(row.len(), V3::zero());

@@ -36,6 +36,18 @@ impl Sampler {
         Self { state: pcg_hash(pixel ^ pcg_hash(sample.wrapping_add(pcg_hash(seed)))) }
     }
 
+    /// The stream at the point `state` was read from (for paths kept lane by lane).
+    #[inline(always)]
+    pub fn from_state(state: u32) -> Self {
+        Self { state }
+    }
+
+    /// Where the stream is: [`Sampler::from_state`] of it goes on from here.
+    #[inline(always)]
+    pub fn state(&self) -> u32 {
+        self.state
+    }
+
     #[inline]
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;

@@ -1,0 +1,252 @@
+//! The lane path tracer: the CPU backend's path tracing, many paths at a time.
+//!
+//! A batch holds the samples of a few neighbouring pixels, one path each, field by field
+//! ([`paths`]). Every round traces the rays of the batch's live paths a bundle at a time
+//! ([`crate::accel::bundle`]: 16 lanes with AVX-512, 8 with AVX2, 4 elsewhere), shades their
+//! vertices a bundle at a time ([`shade`]), traces the shadow rays of next-event estimation a
+//! bundle at a time, and moves the live paths together, so that bundles stay full while
+//! paths end.
+//!
+//! Every path performs the operations of [`super::path::radiance`] in the same order (the
+//! bundle walk's hits are the one-ray walk's, bit for bit, and the shading lanes compute what
+//! [`super::path::shade_vertex`] computes), and each pixel adds its samples in sample order,
+//! so the image equals the one-path-at-a-time tracer's ([`super::path`]) bit for bit;
+//! `tests/path_tracing.rs` checks it.
+
+mod lane;
+mod paths;
+mod shade;
+
+use super::path::{self, NeeRay, PathState};
+use super::sampler::Sampler;
+use super::shade::ShadeInputs;
+use crate::accel::bundle::{self, Isa, MAX_WIDTH};
+use crate::math::{Ray, V3};
+use crate::primitives::Hit;
+use paths::Paths;
+pub use shade::Facts;
+use std::time::Duration;
+use web_time::Instant;
+
+/// Paths per batch: enough that bundles stay full for most rounds, few enough that the batch
+/// stays in the first two cache levels.
+const BATCH: usize = 256;
+
+/// Where the lane tracer's time went.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StageTimes {
+    /// Camera rays made, paths ended and pixels summed.
+    pub generate: Duration,
+    /// Nearest hits of the paths' rays.
+    pub trace: Duration,
+    /// Vertices shaded (emission, delta lights with their shadow rays, light and BSDF
+    /// sampling, Russian roulette).
+    pub shade: Duration,
+    /// Shadow rays towards the sampled area lights.
+    pub shadow: Duration,
+}
+
+impl StageTimes {
+    pub fn add(&mut self, o: &StageTimes) {
+        self.generate += o.generate;
+        self.trace += o.trace;
+        self.shade += o.shade;
+        self.shadow += o.shadow;
+    }
+    pub fn total(&self) -> Duration {
+        self.generate + self.trace + self.shade + self.shadow
+    }
+}
+
+/// The lane tracer's working memory, kept from batch to batch (one per thread).
+pub struct Tracer<'f> {
+    isa: Isa,
+    facts: &'f Facts,
+    paths: Paths,
+    /// Per path: it goes on after this round's vertex.
+    more: Vec<bool>,
+    /// Per slot (pixel-major, then sample): the pixel's offset in the row, and the radiance.
+    slots: Vec<(u32, V3<f32>)>,
+    hits: [Option<Hit<f32>>; MAX_WIDTH],
+    shadow: Vec<(u32, NeeRay)>,
+    /// Where the time went, when timed.
+    pub times: StageTimes,
+    timed: bool,
+}
+
+impl<'f> Tracer<'f> {
+    /// A tracer with `isa`'s lanes for scenes `facts` describes; `timed`: measure each stage
+    /// (two clock reads per stage and round).
+    pub fn new(isa: Isa, facts: &'f Facts, timed: bool) -> Self {
+        let cap = BATCH + MAX_WIDTH;
+        Self {
+            isa,
+            facts,
+            paths: Paths::new(cap),
+            more: vec![false; cap],
+            slots: Vec::with_capacity(BATCH),
+            hits: [None; MAX_WIDTH],
+            shadow: Vec::with_capacity(cap),
+            times: StageTimes::default(),
+            timed,
+        }
+    }
+
+    /// Samples `samples` of pixels `x0 .. x0 + width` of row `y`: each sample's radiance (0
+    /// where not finite) goes to `add(pixel offset, radiance)`, every pixel's in sample order.
+    pub fn row(
+        &mut self,
+        inp: &ShadeInputs,
+        y: u32,
+        x0: u32,
+        width: u32,
+        samples: std::ops::Range<u32>,
+        add: &mut dyn FnMut(usize, V3<f32>),
+    ) {
+        match self.isa {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the processor has AVX-512 (a tracer is only made for lanes it runs).
+            Isa::Avx512 => unsafe { self.row_avx512(inp, y, x0, width, samples, add) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as above, AVX2.
+            Isa::Avx2 => unsafe { self.row_avx2(inp, y, x0, width, samples, add) },
+            _ => self.row_n::<4>(inp, y, x0, width, samples, add),
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    fn row_avx512(
+        &mut self,
+        inp: &ShadeInputs,
+        y: u32,
+        x0: u32,
+        width: u32,
+        samples: std::ops::Range<u32>,
+        add: &mut dyn FnMut(usize, V3<f32>),
+    ) {
+        self.row_n::<16>(inp, y, x0, width, samples, add)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    fn row_avx2(
+        &mut self,
+        inp: &ShadeInputs,
+        y: u32,
+        x0: u32,
+        width: u32,
+        samples: std::ops::Range<u32>,
+        add: &mut dyn FnMut(usize, V3<f32>),
+    ) {
+        self.row_n::<8>(inp, y, x0, width, samples, add)
+    }
+
+    #[inline(always)]
+    fn row_n<const N: usize>(
+        &mut self,
+        inp: &ShadeInputs,
+        y: u32,
+        x0: u32,
+        width: u32,
+        samples: std::ops::Range<u32>,
+        add: &mut dyn FnMut(usize, V3<f32>),
+    ) {
+        let f = inp.frame;
+        let spp = samples.len() as u32;
+        if spp == 0 {
+            return;
+        }
+        // Pixel-major order: (pixel, sample) pairs, BATCH at a time.
+        let total = width as u64 * spp as u64;
+        let mut next = 0u64;
+        while next < total {
+            let t = self.clock();
+            let end = (next + BATCH as u64).min(total);
+            self.paths.len = 0;
+            self.slots.clear();
+            for pair in next..end {
+                let (px, s) = ((pair / spp as u64) as u32, samples.start + (pair % spp as u64) as u32);
+                let x = x0 + px;
+                let rng = Sampler::new(y * f.width + x, s, f.seed);
+                self.paths.push(&PathState::new(path::camera_ray(inp, x, y, s)), &rng, self.slots.len() as u32);
+                self.slots.push((px, V3::zero()));
+            }
+            let mut times = self.times;
+            Self::lap(t, &mut times.generate);
+            self.batch::<N>(inp, &mut times);
+            let t = self.clock();
+            for &(px, c) in &self.slots {
+                add(px as usize, c);
+            }
+            Self::lap(t, &mut times.generate);
+            self.times = times;
+            next = end;
+        }
+    }
+
+    #[inline]
+    fn clock(&self) -> Option<Instant> {
+        self.timed.then(Instant::now)
+    }
+
+    #[inline]
+    fn lap(since: Option<Instant>, into: &mut Duration) -> Option<Instant> {
+        since.map(|s| {
+            let n = Instant::now();
+            *into += n - s;
+            n
+        })
+    }
+
+    /// Traces the batch's paths to their ends; each path's radiance goes to its slot.
+    #[inline(always)]
+    fn batch<const N: usize>(&mut self, inp: &ShadeInputs, times: &mut StageTimes) {
+        let mut rays = [Ray::new(V3::zero(), V3::zero()); MAX_WIDTH];
+        let mut tmax = [0.0f32; MAX_WIDTH];
+        while self.paths.len > 0 {
+            let mut t = self.clock();
+            self.shadow.clear();
+            let live = self.paths.len;
+            let mut k = 0;
+            while k < live {
+                let n = N.min(live - k);
+                for (l, r) in rays[..n].iter_mut().enumerate() {
+                    *r = self.paths.ray(k + l);
+                }
+                bundle::nearest(self.isa, inp.wide, inp.prims, &rays[..n], &mut self.hits);
+                t = Self::lap(t, &mut times.trace);
+                shade::shade::<N>(inp, self.facts, &mut self.paths, k, n, &self.hits, &mut self.more, &mut self.shadow);
+                t = Self::lap(t, &mut times.shade);
+                k += n;
+            }
+            // Shadow rays: each unblocked one adds its light to its path.
+            for chunk in self.shadow.chunks(N) {
+                for (l, (_, s)) in chunk.iter().enumerate() {
+                    rays[l] = s.ray;
+                    tmax[l] = s.dist;
+                }
+                let blocked = bundle::occluded(self.isa, inp.wide, inp.prims, &rays[..chunk.len()], &tmax);
+                for (l, (i, s)) in chunk.iter().enumerate() {
+                    if blocked >> l & 1 == 0 {
+                        self.paths.add_to_sum(*i as usize, s.value);
+                    }
+                }
+            }
+            t = Self::lap(t, &mut times.shadow);
+            // The paths that ended leave their radiance; the others move together.
+            let mut keep = 0;
+            for i in 0..live {
+                if self.more[i] {
+                    self.paths.move_down(i, keep);
+                    keep += 1;
+                } else {
+                    let c = self.paths.sum(i);
+                    self.slots[self.paths.slot[i] as usize].1 = if c.is_finite() { c } else { V3::zero() };
+                }
+            }
+            self.paths.len = keep;
+            Self::lap(t, &mut times.generate);
+        }
+    }
+}

@@ -1,0 +1,401 @@
+//! A bundle's vertices shaded lane by lane: [`path::shade_vertex`] over SIMD lanes.
+//!
+//! The common vertices (a diffuse, emissive, smooth mirror or glass surface without textures,
+//! vertex colours, vertex normals or alpha, or the background, in a scene without an
+//! environment light or point and directional lights) are shaded by loops over the lanes,
+//! which the compiler turns into vector instructions; each loop calls the one-path tracer's
+//! own routines ([`spawn_origin`], [`power_heuristic`], [`bsdf::basis`], ...) or performs its
+//! operations in the same order, so every lane computes what [`path::shade_vertex`] computes,
+//! bit for bit. Steps that do not vectorise (choosing a light, sine and cosine) run lane
+//! after lane between the loops. Every other vertex is shaded by [`path::shade_vertex`]
+//! itself.
+
+use super::lane::{F, M, U, V};
+use super::paths::Paths;
+use crate::layout::{ATTR_COLORS, ATTR_NORMALS, FlatScene, LIGHT_STAND_IN, MATERIAL_ALPHA, MATERIAL_TWO_SIDED};
+use crate::math::{Ray, V3};
+use crate::primitives::{Hit, PrimKind};
+use crate::render::bsdf::MIN_ROUGHNESS;
+use crate::render::emitters;
+use crate::render::path::{self, NeeRay, SHADOW_REACH};
+use crate::render::sampler::{PCG_INC, PCG_MULT};
+use crate::render::shade::ShadeInputs;
+use crate::render::spawn::MIN_ULP;
+use crate::render::surface;
+use crate::scene::MaterialKind;
+
+const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
+const PI: f32 = std::f32::consts::PI;
+
+/// What the lanes' shading may take for granted in a scene, found once per render.
+pub struct Facts {
+    /// The scene has no environment light and no point or directional light.
+    pub lanes_ok: bool,
+    /// Per material: shaded in lanes (kind [`Kind`], no texture, no alpha).
+    pub kind: Vec<Option<Kind>>,
+}
+
+/// The materials the lanes shade.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// Diffuse, and emissive (Lambertian beneath its emission).
+    Lambert = 0,
+    Mirror = 1,
+    Glass = 2,
+}
+
+impl Facts {
+    pub fn new(g: &FlatScene, num_lights: u32) -> Self {
+        let delta = g.lights[..num_lights as usize].iter().any(|l| l.flags & LIGHT_STAND_IN == 0);
+        let kind = g
+            .materials
+            .iter()
+            .map(|m| {
+                let untextured = m.color_texture == 0
+                    && m.radiance_texture == 0
+                    && m.normal_texture == 0
+                    && m.metal_rough_texture == 0
+                    && m.flags & MATERIAL_ALPHA == 0;
+                let kind = match m.kind() {
+                    MaterialKind::Diffuse | MaterialKind::Emissive => Some(Kind::Lambert),
+                    MaterialKind::Mirror if m.roughness < MIN_ROUGHNESS => Some(Kind::Mirror),
+                    MaterialKind::Dielectric => Some(Kind::Glass),
+                    _ => None,
+                };
+                kind.filter(|_| untextured)
+            })
+            .collect();
+        Self { lanes_ok: g.environment.is_empty() && !delta, kind }
+    }
+}
+
+/// Shades the vertices of paths `k .. k + n` (n ≤ N) where their rays met `hits[..n]`, as
+/// [`path::shade_vertex`] does: updates the paths, sets `more[k + l]` for each that goes on,
+/// and pushes each area-light shadow ray with its path's index onto `nee`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn shade<const N: usize>(
+    inp: &ShadeInputs,
+    facts: &Facts,
+    p: &mut Paths,
+    k: usize,
+    n_lanes: usize,
+    hits: &[Option<Hit<f32>>],
+    more: &mut [bool],
+    nee: &mut Vec<(u32, NeeRay)>,
+) {
+    let (f, g) = (inp.frame, inp.gpu);
+    debug_assert!(n_lanes <= N && k + N <= p.capacity());
+
+    // Lane after lane: which lanes the loops shade, and what they read of the hit and its
+    // material; the others are shaded by the one-path code now.
+    let mut on = [false; N];
+    let mut is_hit = [false; N];
+    let mut t = [0.0f32; N];
+    let mut nrm = [[0.0f32; N]; 3];
+    let mut kind = [0u32; N];
+    let mut flags = [0u32; N];
+    let mut emits = [false; N];
+    let mut sampled = [false; N];
+    let mut color = [[0.0f32; N]; 3];
+    let mut radiance = [[0.0f32; N]; 3];
+    let mut ior = [1.0f32; N];
+    let mut material = [0u32; N];
+    for l in 0..n_lanes {
+        let i = k + l;
+        let lane_kind = match &hits[l] {
+            _ if !facts.lanes_ok => None,
+            None => Some(None),
+            Some(h) => {
+                let plain = h.prim_ref.kind() != PrimKind::Triangle
+                    || g.triangle_attrs.is_empty()
+                    || g.triangle_attrs[h.prim_ref.index()].flags & (ATTR_NORMALS | ATTR_COLORS) == 0;
+                facts.kind[h.tag.material as usize].filter(|_| plain).map(Some)
+            }
+        };
+        match lane_kind {
+            None => {
+                let (mut st, mut rng) = p.get(i);
+                let mut ne = None;
+                more[i] = path::shade_vertex(inp, &mut st, hits[l].as_ref(), &mut rng, &mut ne);
+                p.set(i, &st, &rng);
+                if let Some(x) = ne {
+                    nee.push((i as u32, x));
+                }
+            }
+            Some(None) => on[l] = true,
+            Some(Some(kd)) => {
+                let h = hits[l].as_ref().expect("a hit");
+                let m = &g.materials[h.tag.material as usize];
+                on[l] = true;
+                is_hit[l] = true;
+                t[l] = h.t;
+                (nrm[0][l], nrm[1][l], nrm[2][l]) = (h.normal.x, h.normal.y, h.normal.z);
+                kind[l] = kd as u32;
+                flags[l] = m.flags;
+                emits[l] = m.kind() == MaterialKind::Emissive;
+                sampled[l] = m.is_light() && matches!(h.prim_ref.kind(), PrimKind::Triangle | PrimKind::Sphere);
+                for a in 0..3 {
+                    color[a][l] = m.color[a];
+                    radiance[a][l] = m.radiance[a];
+                }
+                ior[l] = m.ior;
+                material[l] = h.tag.material;
+            }
+        }
+    }
+    let bg = V::splat(f.background);
+    let one = F::splat(1.0);
+    let zero = F::splat(0.0);
+    let v3 = |a: &[[f32; N]; 3], l: usize| V3::new(a[0][l], a[1][l], a[2][l]);
+    let on_m = M::from_bools(&on);
+    let hit_m = M::from_bools(&is_hit);
+    let lambert = U(kind).eq(U::splat(Kind::Lambert as u32));
+    let glass = U(kind).eq(U::splat(Kind::Glass as u32));
+
+    // The lanes' paths.
+    let (o, d) = (V::<N>::load(&p.o, k), V::<N>::load(&p.d, k));
+    let beta = V::<N>::load(&p.beta, k);
+    let mut sum = V::<N>::load(&p.sum, k);
+    let (pdf_b, seg) = (F::<N>::load(&p.pdf, k), U::<N>::load(&p.seg, k));
+    let specular = U::<N>::load(&p.specular, k).eq(U::splat(0));
+    let specular = !specular;
+    let mut rng = U::<N>::load(&p.rng, k);
+    let t = F(t);
+    let n = V::from_rows(&nrm);
+    let color = V::from_rows(&color);
+    let radiance = V::from_rows(&radiance);
+
+    // The background of a miss, weighted 1 (no environment light to weigh it against); the
+    // emission of an emissive hit, weighted against the light samples.
+    let alive = seg.le(U::splat(f.max_depth));
+    let w = one;
+    let s_miss = sum + beta.mul_elem(bg).scale(w);
+    let cos_l = emitted_cos(U(flags), -d.dot(n));
+    let mean = (radiance.x + radiance.y + radiance.z) / F::splat(3.0);
+    let light_pdf = mean * F::splat(f.emitter_norm) * (t * t) / cos_l;
+    let w_e = (specular | !M::from_bools(&sampled)).select(one, power_heuristic(pdf_b, light_pdf));
+    let s_emit = sum + beta.mul_elem(radiance).scale(w_e);
+    let emit = M::from_bools(&emits) & cos_l.gt(zero);
+    let s_hit = emit.select_v(s_emit, sum);
+    sum = (alive & hit_m).select_v(s_hit, (alive & !hit_m).select_v(s_miss, sum));
+    // The six numbers of the light and BSDF samples.
+    let cont = alive & hit_m & !seg.eq(U::splat(f.max_depth));
+    let u: [F<N>; 6] = std::array::from_fn(|_| draw(&mut rng, cont));
+    let front = d.dot(n).lt(zero);
+    let ng = front.select_v(n, -n);
+    let x = o + d.scale(t);
+
+    // Lane after lane: the light sample of each Lambertian vertex, and a mirror's reflecting
+    // normal (surface::shading_frame).
+    let mut ns = ng.rows();
+    let mut ls_on = [false; N];
+    let mut ls_dir = [[0.0f32; N]; 3];
+    let mut ls_dist = [0.0f32; N];
+    let mut ls_value = [[0.0f32; N]; 3];
+    let mut ls_pdf = [0.0f32; N];
+    let (xr, dr) = (x.rows(), d.rows());
+    for l in 0..n_lanes {
+        if !(on[l] && cont.lane(l)) {
+            continue;
+        }
+        if kind[l] == Kind::Lambert as u32 {
+            if let Some(ls) = emitters::sample(g, f, v3(&xr, l), [u[0].0[l], u[1].0[l], u[2].0[l]]) {
+                ls_on[l] = true;
+                for a in 0..3 {
+                    ls_dir[a][l] = ls.dir[a];
+                    ls_value[a][l] = ls.value[a];
+                }
+                ls_dist[l] = ls.dist;
+                ls_pdf[l] = ls.pdf;
+            }
+        } else if kind[l] == Kind::Mirror as u32 {
+            let nl = v3(&nrm, l);
+            let (_, sn) =
+                surface::shading_frame(&g.materials[material[l] as usize], front.lane(l), nl, nl, -v3(&dr, l));
+            for a in 0..3 {
+                ns[a][l] = sn[a];
+            }
+        }
+    }
+    let ns = V::from_rows(&ns);
+    let wo = -d;
+
+    // The light sample's value (bsdf::eval's Lambertian branch, behind path::eval_above's
+    // face test) and its shadow ray.
+    let wi = V::from_rows(&ls_dir);
+    let cos_i = wi.dot(ns);
+    let above = wi.dot(ng).gt(zero) & cos_i.gt(zero);
+    let fc = above.select_v(color.scale(cos_i * F::splat(INV_PI)), V::splat([0.0; 3]));
+    let pdf_l = above.select(cos_i * F::splat(INV_PI), zero);
+    let value = beta.mul_elem(fc).mul_elem(V::from_rows(&ls_value)).scale(power_heuristic(F(ls_pdf), pdf_l));
+    let nee_m = cont & lambert & M::from_bools(&ls_on) & fc.max_component().gt(zero);
+    let nee_o = spawn_origin(o, d, t, ng);
+
+    // The BSDF sample. Glass: reflect or refract by the Fresnel term.
+    let cos_g = wo.dot(ns);
+    let eta = front.select(F(ior), one / F(ior));
+    let fres = fresnel_dielectric(cos_g, eta);
+    let reflects = u[3].lt(fres);
+    let inv_eta = one / eta;
+    let glass_dir = reflects.select_v(reflect(-wo, ns), refract(-wo, ns, cos_g, inv_eta));
+    let glass_w = reflects.select_v(V::splat([1.0; 3]), color.div(eta * eta));
+    // A smooth mirror.
+    let mirror_dir = reflect(-wo, ns);
+    let mirror_w = schlick(color, cos_g);
+    // Lambertian: a cosine-weighted direction about the shading normal; its angle's sine and
+    // cosine lane after lane.
+    let phi = F::splat(2.0 * PI) * u[5];
+    let has_bs = cont & (!lambert | color.max_component().gt(zero));
+    let mut cos_phi = [0.0f32; N];
+    let mut sin_phi = [0.0f32; N];
+    for l in 0..n_lanes {
+        if on[l] && has_bs.lane(l) && lambert.lane(l) {
+            (cos_phi[l], sin_phi[l]) = (phi.0[l].cos(), phi.0[l].sin());
+        }
+    }
+    let r = u[4].sqrt();
+    let local = V::new(r * F(cos_phi), r * F(sin_phi), (one - u[4]).max(zero).sqrt());
+    let (tb, bb) = basis(ns);
+    let world = (tb.scale(local.x) + bb.scale(local.y) + ns.scale(local.z)).normalize();
+    let dir = lambert.select_v(world, glass.select_v(glass_dir, mirror_dir));
+    let weight = lambert.select_v(color, glass.select_v(glass_w, mirror_w));
+    let pdf = lambert.select(local.z * F::splat(INV_PI), zero);
+
+    // The face test, the path weight, Russian roulette and the next ray.
+    let leaks = !glass & dir.dot(ng).le(zero);
+    let b = beta.mul_elem(weight);
+    let roulette = U::splat(f.rr_depth).le(seg);
+    let q = b.max_component().min(F::splat(0.95));
+    let plays = has_bs & !leaks & roulette;
+    let survives = draw(&mut rng, plays).lt(q) | !plays;
+    let b = roulette.select_v(b.div(q), b);
+    let go = on_m & has_bs & !leaks & survives;
+    let side = dir.dot(n).ge(zero).select_v(n, -n);
+    let origin = spawn_origin(o, d, t, side);
+
+    // Written back, for the lanes shaded here (the one-path code wrote the others').
+    #[inline(always)]
+    fn put<const N: usize>(v: &mut [f32], k: usize, new: F<N>, m: M<N>) {
+        let old = F::<N>::load(v, k);
+        v[k..k + N].copy_from_slice(&m.select(new, old).0);
+    }
+    #[inline(always)]
+    fn put_u<const N: usize>(v: &mut [u32], k: usize, new: U<N>, m: M<N>) {
+        let old = U::<N>::load(v, k);
+        v[k..k + N].copy_from_slice(&m.select_u(new, old).0);
+    }
+    for (a, (nd, nb)) in [(origin.x, dir.x), (origin.y, dir.y), (origin.z, dir.z)].into_iter().enumerate() {
+        put(&mut p.o[a], k, nd, go);
+        put(&mut p.d[a], k, nb, go);
+    }
+    for (a, (nb, ns_)) in [(b.x, sum.x), (b.y, sum.y), (b.z, sum.z)].into_iter().enumerate() {
+        put(&mut p.beta[a], k, nb, go);
+        put(&mut p.sum[a], k, ns_, on_m);
+    }
+    put(&mut p.pdf, k, pdf, go);
+    put_u(&mut p.specular, k, (!lambert).select_u(U::splat(1), U::splat(0)), go);
+    put_u(&mut p.seg, k, seg.wrapping_add(U::splat(1)), go);
+    put_u(&mut p.rng, k, rng, on_m);
+
+    // Lane after lane: what goes on, and the shadow rays.
+    let (no, wv) = (nee_o.rows(), value.rows());
+    for l in 0..n_lanes {
+        if !on[l] {
+            continue;
+        }
+        more[k + l] = go.lane(l);
+        if nee_m.lane(l) {
+            let ray = Ray::new(v3(&no, l), v3(&ls_dir, l));
+            nee.push(((k + l) as u32, NeeRay { ray, dist: ls_dist[l] * SHADOW_REACH, value: v3(&wv, l) }));
+        }
+    }
+}
+
+/// [`Sampler::next_f32`] in every lane, the stream advanced where `on`.
+#[inline(always)]
+fn draw<const N: usize>(rng: &mut U<N>, on: M<N>) -> F<N> {
+    let old = *rng;
+    *rng = on.select_u(old.wrapping_mul(U::splat(PCG_MULT)).wrapping_add(U::splat(PCG_INC)), old);
+    // sampler's permute: RXS-M-XS.
+    let shift = (old >> U::splat(28)).wrapping_add(U::splat(4));
+    let word = ((old >> shift) ^ old).wrapping_mul(U::splat(277_803_737));
+    let out = (word >> U::splat(22)) ^ word;
+    out.top24_f32() * F::splat(1.0 / 16_777_216.0)
+}
+
+/// [`path::power_heuristic`].
+#[inline(always)]
+fn power_heuristic<const N: usize>(a: F<N>, b: F<N>) -> F<N> {
+    let (a2, b2) = (a * a, b * b);
+    (a2 + b2).gt(F::splat(0.0)).select(a2 / (a2 + b2), F::splat(0.0))
+}
+
+/// [`emitters::emitted_cos`] for material flags `flags`.
+#[inline(always)]
+fn emitted_cos<const N: usize>(flags: U<N>, cos: F<N>) -> F<N> {
+    let one_sided = (flags & U::splat(MATERIAL_TWO_SIDED)).eq(U::splat(0));
+    one_sided.select(cos, cos.abs())
+}
+
+/// [`spawn_origin`] for the ray (o, d) hit at `t`, leaving on the side of `n`.
+#[inline(always)]
+fn spawn_origin<const N: usize>(o: V<N>, d: V<N>, t: F<N>, n: V<N>) -> V<N> {
+    #[inline(always)]
+    fn step<const N: usize>(p: F<N>, o: F<N>, t: F<N>, n: F<N>) -> F<N> {
+        let min_ulp = F::splat(MIN_ULP);
+        let m = (o.abs() + t.abs()).max(p.abs()).max(min_ulp);
+        let ulp = F::from_bits(m.to_bits().wrapping_add(U::splat(1))) - m;
+        p + F::splat(32.0) * n * ulp.max(min_ulp)
+    }
+    let p = o + d.scale(t);
+    V::new(step(p.x, o.x, t, n.x), step(p.y, o.y, t, n.y), step(p.z, o.z, t, n.z))
+}
+
+/// [`reflect`].
+#[inline(always)]
+fn reflect<const N: usize>(d: V<N>, n: V<N>) -> V<N> {
+    d - n.scale(F::splat(2.0) * d.dot(n))
+}
+
+/// [`refract`].
+#[inline(always)]
+fn refract<const N: usize>(d: V<N>, n: V<N>, cos_i: F<N>, eta: F<N>) -> V<N> {
+    let one = F::splat(1.0);
+    let sin2_t = eta * eta * (one - cos_i * cos_i);
+    let cos_t = (one - sin2_t).max(F::splat(0.0)).sqrt();
+    (d.scale(eta) + n.scale(eta * cos_i - cos_t)).normalize()
+}
+
+/// [`fresnel_dielectric`].
+#[inline(always)]
+fn fresnel_dielectric<const N: usize>(cos_i: F<N>, eta: F<N>) -> F<N> {
+    let one = F::splat(1.0);
+    let sin2_t = (one - cos_i * cos_i) / (eta * eta);
+    let cos_t = (one - sin2_t).max(F::splat(0.0)).sqrt();
+    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    sin2_t.ge(one).select(one, F::splat(0.5) * (r_parl * r_parl + r_perp * r_perp))
+}
+
+/// [`schlick`].
+#[inline(always)]
+fn schlick<const N: usize>(f0: V<N>, cos: F<N>) -> V<N> {
+    let (zero, one) = (F::splat(0.0), F::splat(1.0));
+    // f32::clamp(0, 1): NaN stays NaN.
+    let m = F::splat(1.0) - cos;
+    let m = m.lt(zero).select(zero, m);
+    let m = m.gt(one).select(one, m);
+    let m5 = m * m * m * m * m;
+    f0 + (V::splat([1.0; 3]) - f0).scale(m5)
+}
+
+/// [`bsdf::basis`].
+#[inline(always)]
+fn basis<const N: usize>(n: V<N>) -> (V<N>, V<N>) {
+    let one = F::splat(1.0);
+    let sign = n.z.ge(F::splat(0.0)).select(one, -one);
+    let a = -one / (sign + n.z);
+    let b = n.x * n.y * a;
+    (V::new(one + sign * n.x * n.x * a, sign * b, -sign * n.x), V::new(b, sign + n.y * n.y * a, -n.y))
+}
