@@ -24,6 +24,8 @@ use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use strahl_core::accel::bundle::Isa;
+use strahl_core::cpu::{self, PathTracer};
 use strahl_core::image::Region;
 use strahl_core::layout::FrameParams;
 use strahl_core::render::Prepared;
@@ -351,24 +353,68 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
             }));
         }
     }
+    // The CPU's tracers: the lanes of each lane set this processor runs (the widest is the
+    // backend's), then the one-path-at-a-time reference. Their stage times come from one
+    // timed render each, summed over the threads.
+    let mut cpu_tracers: Vec<(String, Value)> = Vec::new();
+    for isa in Isa::available() {
+        let (_, t) = cpu::render_path_timed(prep, &frame, isa);
+        let stages = json!({
+            "generate": t.generate.as_secs_f64(),
+            "trace": t.trace.as_secs_f64(),
+            "shade": t.shade.as_secs_f64(),
+            "shadow": t.shadow.as_secs_f64(),
+        });
+        cpu_tracers.push((format!("lanes ({}, {} wide)", isa.name(), isa.width()), stages));
+        rows.push(Box::new(move || {
+            cpu::render_region_with(
+                prep,
+                &frame,
+                RenderMode::Path,
+                whole_frame(&frame),
+                PathTracer::Lanes(isa),
+                &|_| {},
+            );
+            Ok(())
+        }));
+    }
+    cpu_tracers.push(("one path at a time".to_string(), Value::Null));
     rows.push(Box::new(|| {
-        strahl_core::cpu::render(prep, &frame, RenderMode::Path, &|_| {});
+        cpu::render_region_with(prep, &frame, RenderMode::Path, whole_frame(&frame), PathTracer::OneByOne, &|_| {});
         Ok(())
     }));
     let walls = median_times(a.frames, &mut rows)?;
     drop(rows);
+    let n_cpu = cpu_tracers.len();
+    let cpu_walls = &walls[walls.len() - n_cpu..];
+    let cpu_rows: Vec<Value> = cpu_tracers
+        .into_iter()
+        .zip(cpu_walls)
+        .map(|((tracer, stages), wall)| {
+            json!({
+                "tracer": tracer,
+                "frame_s": wall.as_secs_f64(),
+                "msamples_per_s": samples / wall.as_secs_f64() / 1e6,
+                "stage_time_s": stages,
+            })
+        })
+        .collect();
     let gpu: Vec<Value> = labels
         .into_iter()
         .zip(&walls)
         .map(|((kernels, features, times), &wall)| row(kernels, features, wall, &times))
         .collect();
-    let cpu = walls[walls.len() - 1];
     Ok(json!({
         "spp": a.spp,
         "max_depth": frame.max_depth,
         "gpu": gpu,
-        "cpu": { "frame_s": cpu.as_secs_f64(), "msamples_per_s": samples / cpu.as_secs_f64() / 1e6 },
+        "cpu": cpu_rows[0].clone(),
+        "cpu_tracers": cpu_rows,
     }))
+}
+
+fn whole_frame(frame: &FrameParams) -> Region {
+    Region::whole(frame.width, frame.height)
 }
 
 fn print_report(r: &Value) {
@@ -434,7 +480,7 @@ fn print_report(r: &Value) {
                 "\n{name}, path tracing, {}x{}, {} spp, max_depth {}:",
                 s["width"], s["height"], p["spp"], p["max_depth"]
             );
-            println!("| backend | kernels | frame ms | M samples/s | kernel times ms | features |");
+            println!("| backend | kernels or tracer | frame ms | M samples/s | kernel or stage times ms | features |");
             println!("|---|---|---|---|---|---|");
             let c = &p["cpu"];
             for g in p["gpu"].as_array().into_iter().flatten() {
@@ -460,7 +506,29 @@ fn print_report(r: &Value) {
                     ));
                 }
             }
-            println!("| cpu | - | {} | {} | - | - |", f(&c["frame_s"], 1e3, 1), f(&c["msamples_per_s"], 1.0, 3));
+            let reference = p["cpu_tracers"].as_array().and_then(|t| t.last()).cloned().unwrap_or(Value::Null);
+            for t in p["cpu_tracers"].as_array().into_iter().flatten() {
+                let stages: Vec<String> = t["stage_time_s"]
+                    .as_object()
+                    .into_iter()
+                    .flatten()
+                    .map(|(k, v)| format!("{k} {}", f(v, 1e3, 1)))
+                    .collect();
+                println!(
+                    "| cpu | {} | {} | {} | {} | - |",
+                    t["tracer"].as_str().unwrap_or(""),
+                    f(&t["frame_s"], 1e3, 1),
+                    f(&t["msamples_per_s"], 1.0, 3),
+                    if stages.is_empty() { "-".to_string() } else { stages.join(", ") },
+                );
+            }
+            if let (Some(fast), Some(slow)) = (c["msamples_per_s"].as_f64(), reference["msamples_per_s"].as_f64()) {
+                summary.push(format!(
+                    "{name}, path tracing: the CPU's {} is {} than one path at a time",
+                    c["tracer"].as_str().unwrap_or(""),
+                    faster_or_slower(fast / slow)
+                ));
+            }
         }
     }
     if !summary.is_empty() {

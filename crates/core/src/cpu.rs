@@ -64,6 +64,27 @@ pub fn render_region_with(
     tracer: PathTracer,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Image {
+    render_region_timed(prep, frame, mode, region, tracer, None, progress)
+}
+
+/// The whole image in path mode by the lane tracer with `isa`'s lanes, and where its time
+/// went (summed over the threads).
+pub fn render_path_timed(prep: &Prepared, frame: &FrameParams, isa: Isa) -> (Image, lanes::StageTimes) {
+    let times = std::sync::Mutex::new(lanes::StageTimes::default());
+    let whole = Region::whole(frame.width, frame.height);
+    let img = render_region_timed(prep, frame, RenderMode::Path, whole, PathTracer::Lanes(isa), Some(&times), &|_| {});
+    (img, times.into_inner().unwrap_or_else(|e| e.into_inner()))
+}
+
+fn render_region_timed(
+    prep: &Prepared,
+    frame: &FrameParams,
+    mode: RenderMode,
+    region: Region,
+    tracer: PathTracer,
+    times: Option<&std::sync::Mutex<lanes::StageTimes>>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Image {
     assert!(region.fits(frame.width, frame.height), "region {region} of a {}x{} image", frame.width, frame.height);
     let inputs = ShadeInputs { prims: &prep.prims, wide: &prep.wide, gpu: &prep.gpu, frame };
     let mut img = Image::new(region.width(), region.height());
@@ -76,13 +97,27 @@ pub fn render_region_with(
         (RenderMode::Path, PathTracer::Lanes(isa)) => {
             let samples = frame.sample_base..frame.sample_base + frame.spp;
             let facts = lanes::Facts::new(&prep.gpu, frame.num_lights);
+            // Each worker's tracer, its time added to `times` when the worker is done.
+            struct Worker<'f, 't> {
+                tracer: lanes::Tracer<'f>,
+                sums: Vec<V3<f32>>,
+                times: Option<&'t std::sync::Mutex<lanes::StageTimes>>,
+            }
+            impl Drop for Worker<'_, '_> {
+                fn drop(&mut self) {
+                    if let Some(t) = self.times {
+                        t.lock().unwrap_or_else(|e| e.into_inner()).add(&self.tracer.times);
+                    }
+                }
+            }
             rows.for_each_init(
-                || (lanes::Tracer::new(isa, &facts, false), Vec::new()),
-                |(tracer, sums), (dy, row)| {
-                    sums.clear();
-                    sums.resize(row.len(), V3::zero());
+                || Worker { tracer: lanes::Tracer::new(isa, &facts, times.is_some()), sums: Vec::new(), times },
+                |w, (dy, row)| {
+                    w.sums.clear();
+                    w.sums.resize(row.len(), V3::zero());
                     let y = region.y0 + dy as u32;
-                    tracer.row(&inputs, y, region.x0, row.len() as u32, samples.clone(), &mut |x, c| sums[x] += c);
+                    let sums = &mut w.sums;
+                    w.tracer.row(&inputs, y, region.x0, row.len() as u32, samples.clone(), &mut |x, c| sums[x] += c);
                     for (px, sum) in row.iter_mut().zip(sums.iter()) {
                         *px = (*sum / frame.spp as f32).to_array();
                     }
