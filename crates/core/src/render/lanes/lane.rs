@@ -193,6 +193,15 @@ impl<const N: usize> U<N> {
         }
         M(r)
     }
+    /// `u as f32` (rounded to nearest where u > 2²⁴).
+    #[inline(always)]
+    pub fn to_f32(self) -> F<N> {
+        let mut r = [0.0f32; N];
+        for l in 0..N {
+            r[l] = self.0[l] as f32;
+        }
+        F(r)
+    }
     /// `(u >> 8) as f32`: exact for every u32.
     #[inline(always)]
     pub fn top24_f32(self) -> F<N> {

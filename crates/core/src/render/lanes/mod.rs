@@ -13,12 +13,12 @@
 //! so the image equals the one-path-at-a-time tracer's ([`super::path`]) bit for bit;
 //! `tests/path_tracing.rs` checks it.
 
+mod camera;
 mod lane;
 mod paths;
 mod shade;
 
-use super::path::{self, NeeRay, PathState};
-use super::sampler::Sampler;
+use super::path::NeeRay;
 use super::shade::ShadeInputs;
 use crate::accel::bundle::{self, Isa, MAX_WIDTH};
 use crate::math::{Ray, V3};
@@ -163,15 +163,20 @@ impl<'f> Tracer<'f> {
         while next < total {
             let t = self.clock();
             let end = (next + BATCH as u64).min(total);
-            self.paths.len = 0;
+            let count = (end - next) as usize;
             self.slots.clear();
-            for pair in next..end {
-                let (px, s) = ((pair / spp as u64) as u32, samples.start + (pair % spp as u64) as u32);
-                let x = x0 + px;
-                let rng = Sampler::new(y * f.width + x, s, f.seed);
-                self.paths.push(&PathState::new(path::camera_ray(inp, x, y, s)), &rng, self.slots.len() as u32);
-                self.slots.push((px, V3::zero()));
+            let pair = |i: usize| {
+                let q = next + i.min(count - 1) as u64;
+                ((q / spp as u64) as u32, samples.start + (q % spp as u64) as u32)
+            };
+            for k in (0..count).step_by(N) {
+                let pairs: [(u32, u32); N] = std::array::from_fn(|l| pair(k + l));
+                let x = lane::U(pairs.map(|(px, _)| x0 + px));
+                let s = lane::U(pairs.map(|(_, s)| s));
+                camera::start::<N>(f, &mut self.paths, k, x, y, s, k as u32);
             }
+            self.paths.len = count;
+            self.slots.extend((0..count).map(|i| (pair(i).0, V3::zero())));
             let mut times = self.times;
             Self::lap(t, &mut times.generate);
             self.batch::<N>(inp, &mut times);
@@ -197,6 +202,13 @@ impl<'f> Tracer<'f> {
             *into += n - s;
             n
         })
+    }
+
+    /// Path `i` has ended: its radiance (0 where not finite) goes to its slot.
+    #[inline(always)]
+    fn finish(&mut self, i: usize) {
+        let c = self.paths.sum(i);
+        self.slots[self.paths.slot[i] as usize].1 = if c.is_finite() { c } else { V3::zero() };
     }
 
     /// Traces the batch's paths to their ends; each path's radiance goes to its slot.
@@ -234,17 +246,26 @@ impl<'f> Tracer<'f> {
                 }
             }
             t = Self::lap(t, &mut times.shadow);
-            // The paths that ended leave their radiance; the others move together.
-            let mut keep = 0;
-            for i in 0..live {
+            // The paths that ended leave their radiance; the last live paths move into their
+            // places (the order of paths in a batch does not matter: each knows its slot).
+            let (mut i, mut end) = (0, live);
+            while i < end {
                 if self.more[i] {
-                    self.paths.move_down(i, keep);
-                    keep += 1;
-                } else {
-                    let c = self.paths.sum(i);
-                    self.slots[self.paths.slot[i] as usize].1 = if c.is_finite() { c } else { V3::zero() };
+                    i += 1;
+                    continue;
+                }
+                self.finish(i);
+                end -= 1;
+                while end > i && !self.more[end] {
+                    self.finish(end);
+                    end -= 1;
+                }
+                if end > i {
+                    self.paths.move_path(end, i);
+                    i += 1;
                 }
             }
+            let keep = i;
             self.paths.len = keep;
             Self::lap(t, &mut times.generate);
         }

@@ -46,14 +46,6 @@ impl Paths {
     }
 
     #[inline]
-    pub fn push(&mut self, p: &PathState, rng: &Sampler, slot: u32) {
-        let i = self.len;
-        self.set(i, p, rng);
-        self.slot[i] = slot;
-        self.len += 1;
-    }
-
-    #[inline]
     pub fn ray(&self, i: usize) -> Ray<f32> {
         Ray::new(V3::new(self.o[0][i], self.o[1][i], self.o[2][i]), V3::new(self.d[0][i], self.d[1][i], self.d[2][i]))
     }
@@ -96,9 +88,9 @@ impl Paths {
         self.rng[i] = rng.state();
     }
 
-    /// Moves path `from` to entry `to` (to ≤ from), for compaction.
+    /// Moves path `from` to entry `to`, for compaction.
     #[inline]
-    pub fn move_down(&mut self, from: usize, to: usize) {
+    pub fn move_path(&mut self, from: usize, to: usize) {
         for a in 0..3 {
             self.o[a][to] = self.o[a][from];
             self.d[a][to] = self.d[a][from];
