@@ -27,7 +27,7 @@ use super::wide::{EMPTY_CHILD, EMPTY_PRIM, LANES, LEAF_BIT, LeafBlock, MAX_DEPTH
 use super::wide_traverse;
 use crate::geometry::{Cylinder, Part, Sphere};
 use crate::math::{Ray, Real};
-use crate::primitives::{Hit, Nearest, PrimKind, PrimRef, Primitives};
+use crate::primitives::{Nearest, PrimKind, PrimRef, Primitives};
 use std::mem::MaybeUninit;
 
 /// The most lanes a bundle has (AVX-512).
@@ -101,11 +101,11 @@ impl Isa {
 }
 
 /// The nearest hit in (0, ∞) of each of `rays` (at most `isa.width()`), into `out`: exactly
-/// what [`wide_traverse::nearest`] answers.
+/// what [`wide_traverse::nearest`] finds (its record is [`Primitives::hit`] of it).
 ///
 /// # Panics
 /// If `isa` does not run here, or `rays` is longer than its width or than `out`.
-pub fn nearest(isa: Isa, w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], out: &mut [Option<Hit<f32>>]) {
+pub fn nearest(isa: Isa, w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], out: &mut [Nearest<f32>]) {
     assert!(isa.runs_here() && rays.len() <= isa.width() && out.len() >= rays.len());
     match isa {
         #[cfg(target_arch = "x86_64")]
@@ -142,17 +142,12 @@ mod x86 {
     use crate::accel::simd::Avx2;
 
     #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(super) fn nearest_avx512(
-        w: &WideBvh,
-        prims: &Primitives<f32>,
-        rays: &[Ray<f32>],
-        out: &mut [Option<Hit<f32>>],
-    ) {
+    pub(super) fn nearest_avx512(w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], out: &mut [Nearest<f32>]) {
         nearest_n::<16, Avx2>(w, prims, rays, out)
     }
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(super) fn nearest_avx2(w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], out: &mut [Option<Hit<f32>>]) {
+    pub(super) fn nearest_avx2(w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], out: &mut [Nearest<f32>]) {
         nearest_n::<8, Avx2>(w, prims, rays, out)
     }
 
@@ -561,7 +556,7 @@ fn nearest_n<const N: usize, K: Kernels>(
     w: &WideBvh,
     prims: &Primitives<f32>,
     rays: &[Ray<f32>],
-    out: &mut [Option<Hit<f32>>],
+    out: &mut [Nearest<f32>],
 ) {
     if rays.is_empty() {
         return;
@@ -587,9 +582,8 @@ fn nearest_n<const N: usize, K: Kernels>(
     if !w.is_empty() {
         walk_nearest::<N, K>(w, prims, &lanes, &mut best);
     }
-    for (l, (o, ray)) in out.iter_mut().zip(rays).enumerate() {
-        let b = best.lane(l);
-        *o = b.found.then(|| prims.hit(b.prim_ref, ray, b.t, b.part));
+    for (l, o) in out[..rays.len()].iter_mut().enumerate() {
+        *o = best.lane(l);
     }
 }
 
@@ -813,10 +807,11 @@ mod tests {
             let mut len = 1;
             while start < rays.len() {
                 let end = (start + len).min(rays.len());
-                let mut out = vec![None; end - start];
+                let mut out = vec![Nearest::new(0.0); end - start];
                 nearest(isa, &w, &prims, &rays[start..end], &mut out);
-                for (i, got) in out.iter().enumerate() {
-                    assert_eq!(*got, want[start + i], "{isa:?}: ray {}", start + i);
+                for (i, b) in out.iter().enumerate() {
+                    let got = b.found.then(|| prims.hit(b.prim_ref, &rays[start + i], b.t, b.part));
+                    assert_eq!(got, want[start + i], "{isa:?}: ray {}", start + i);
                     caps += got.is_some_and(|h| h.part != Part::Surface) as usize;
                 }
                 let m = occluded(isa, &w, &prims, &rays[start..end], &tmax[start..end]);

@@ -22,7 +22,7 @@ use super::path::NeeRay;
 use super::shade::ShadeInputs;
 use crate::accel::bundle::{self, Isa, MAX_WIDTH};
 use crate::math::{Ray, V3};
-use crate::primitives::Hit;
+use crate::primitives::Nearest;
 use paths::Paths;
 pub use shade::Facts;
 use std::time::Duration;
@@ -67,7 +67,7 @@ pub struct Tracer<'f> {
     more: Vec<bool>,
     /// Per slot (pixel-major, then sample): the pixel's offset in the row, and the radiance.
     slots: Vec<(u32, V3<f32>)>,
-    hits: [Option<Hit<f32>>; MAX_WIDTH],
+    hits: [Nearest<f32>; MAX_WIDTH],
     shadow: Vec<(u32, NeeRay)>,
     /// Where the time went, when timed.
     pub times: StageTimes,
@@ -85,7 +85,7 @@ impl<'f> Tracer<'f> {
             paths: Paths::new(cap),
             more: vec![false; cap],
             slots: Vec::with_capacity(BATCH),
-            hits: [None; MAX_WIDTH],
+            hits: [Nearest::new(0.0); MAX_WIDTH],
             shadow: Vec::with_capacity(cap),
             times: StageTimes::default(),
             timed,

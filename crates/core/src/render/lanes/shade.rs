@@ -14,7 +14,7 @@ use super::lane::{F, M, U, V};
 use super::paths::Paths;
 use crate::layout::{ATTR_COLORS, ATTR_NORMALS, FlatScene, LIGHT_STAND_IN, MATERIAL_ALPHA, MATERIAL_TWO_SIDED};
 use crate::math::{Ray, V3};
-use crate::primitives::{Hit, PrimKind};
+use crate::primitives::{Nearest, PrimKind};
 use crate::render::bsdf::MIN_ROUGHNESS;
 use crate::render::emitters;
 use crate::render::path::{self, NeeRay, SHADOW_REACH};
@@ -80,11 +80,11 @@ pub(super) fn shade<const N: usize>(
     p: &mut Paths,
     k: usize,
     n_lanes: usize,
-    hits: &[Option<Hit<f32>>],
+    hits: &[Nearest<f32>],
     more: &mut [bool],
     nee: &mut Vec<(u32, NeeRay)>,
 ) {
-    let (f, g) = (inp.frame, inp.gpu);
+    let (f, g, prims) = (inp.frame, inp.gpu, inp.prims);
     debug_assert!(n_lanes <= N && k + N <= p.capacity());
 
     // Lane after lane: which lanes the loops shade, and what they read of the hit and its
@@ -101,23 +101,32 @@ pub(super) fn shade<const N: usize>(
     let mut radiance = [[0.0f32; N]; 3];
     let mut ior = [1.0f32; N];
     let mut material = [0u32; N];
+    // Geometry for the normals the lanes compute: a sphere's centre, a triangle's vertices
+    // (a cylinder's or a plane's normal comes from Primitives::hit here).
+    let mut geo = [[0.0f32; N]; 9];
+    let mut sphere = [false; N];
+    let mut given = [false; N];
     for l in 0..n_lanes {
         let i = k + l;
-        let lane_kind = match &hits[l] {
-            _ if !facts.lanes_ok => None,
-            None => Some(None),
-            Some(h) => {
-                let plain = h.prim_ref.kind() != PrimKind::Triangle
-                    || g.triangle_attrs.is_empty()
-                    || g.triangle_attrs[h.prim_ref.index()].flags & (ATTR_NORMALS | ATTR_COLORS) == 0;
-                facts.kind[h.tag.material as usize].filter(|_| plain).map(Some)
-            }
+        let b = &hits[l];
+        let prim = b.prim_ref;
+        let material_of = |prim| prims.tag(prim).material as usize;
+        let lane_kind = if !facts.lanes_ok {
+            None
+        } else if !b.found {
+            Some(None)
+        } else {
+            let plain = prim.kind() != PrimKind::Triangle
+                || g.triangle_attrs.is_empty()
+                || g.triangle_attrs[prim.index()].flags & (ATTR_NORMALS | ATTR_COLORS) == 0;
+            facts.kind[material_of(prim)].filter(|_| plain).map(Some)
         };
         match lane_kind {
             None => {
                 let (mut st, mut rng) = p.get(i);
+                let hit = b.found.then(|| prims.hit(prim, &st.ray, b.t, b.part));
                 let mut ne = None;
-                more[i] = path::shade_vertex(inp, &mut st, hits[l].as_ref(), &mut rng, &mut ne);
+                more[i] = path::shade_vertex(inp, &mut st, hit.as_ref(), &mut rng, &mut ne);
                 p.set(i, &st, &rng);
                 if let Some(x) = ne {
                     nee.push((i as u32, x));
@@ -125,22 +134,39 @@ pub(super) fn shade<const N: usize>(
             }
             Some(None) => on[l] = true,
             Some(Some(kd)) => {
-                let h = hits[l].as_ref().expect("a hit");
-                let m = &g.materials[h.tag.material as usize];
+                let mi = material_of(prim);
+                let m = &g.materials[mi];
                 on[l] = true;
                 is_hit[l] = true;
-                t[l] = h.t;
-                (nrm[0][l], nrm[1][l], nrm[2][l]) = (h.normal.x, h.normal.y, h.normal.z);
+                t[l] = b.t;
+                match prim.kind() {
+                    PrimKind::Sphere => {
+                        let c = prims.spheres[prim.index()].shape.center;
+                        (geo[0][l], geo[1][l], geo[2][l]) = (c.x, c.y, c.z);
+                        sphere[l] = true;
+                    }
+                    PrimKind::Triangle => {
+                        let v = &prims.triangles[prim.index()].shape.v;
+                        for (j, c) in [v[0], v[1], v[2]].iter().flat_map(|v| v.to_array()).enumerate() {
+                            geo[j][l] = c;
+                        }
+                    }
+                    _ => {
+                        let h = prims.hit(prim, &p.ray(i), b.t, b.part);
+                        (nrm[0][l], nrm[1][l], nrm[2][l]) = (h.normal.x, h.normal.y, h.normal.z);
+                        given[l] = true;
+                    }
+                }
                 kind[l] = kd as u32;
                 flags[l] = m.flags;
                 emits[l] = m.kind() == MaterialKind::Emissive;
-                sampled[l] = m.is_light() && matches!(h.prim_ref.kind(), PrimKind::Triangle | PrimKind::Sphere);
+                sampled[l] = m.is_light() && matches!(prim.kind(), PrimKind::Triangle | PrimKind::Sphere);
                 for a in 0..3 {
                     color[a][l] = m.color[a];
                     radiance[a][l] = m.radiance[a];
                 }
                 ior[l] = m.ior;
-                material[l] = h.tag.material;
+                material[l] = mi as u32;
             }
         }
     }
@@ -162,7 +188,18 @@ pub(super) fn shade<const N: usize>(
     let specular = !specular;
     let mut rng = U::<N>::load(&p.rng, k);
     let t = F(t);
-    let n = V::from_rows(&nrm);
+    // The hit's normal: Sphere::normal (unit_or of the centre-to-hit vector, −d where that
+    // has no length), Triangle::normal (the face normal, normalised), or as given.
+    let to_hit = (o - V::new(F(geo[0]), F(geo[1]), F(geo[2]))) + d.scale(t);
+    let l2 = to_hit.dot(to_hit);
+    let usable = l2.gt(zero) & l2.lt(F::splat(f32::INFINITY));
+    let sphere_n = usable.select_v(to_hit.normalize(), -d);
+    let corner = |j: usize| V::new(F(geo[3 * j]), F(geo[3 * j + 1]), F(geo[3 * j + 2]));
+    let (e1, e2) = (corner(1) - corner(0), corner(2) - corner(0));
+    let face = V::new(e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x);
+    let computed = M::from_bools(&sphere).select_v(sphere_n, face.normalize());
+    let n = M::from_bools(&given).select_v(V::from_rows(&nrm), computed);
+    let nrm = n.rows();
     let color = V::from_rows(&color);
     let radiance = V::from_rows(&radiance);
 
