@@ -196,6 +196,7 @@ impl<R: Real> Primitives<R> {
         self.spheres.len() + self.cylinders.len() + self.triangles.len()
     }
 
+    #[inline]
     pub fn tag(&self, r: PrimRef) -> Tag {
         let i = r.index();
         match r.kind() {

@@ -543,7 +543,8 @@ impl<const N: usize> Best<N> {
         while m != 0 {
             let l = m.trailing_zeros() as usize;
             m &= m - 1;
-            self.bound[l] = crate::primitives::next_up(self.t[l]);
+            // primitives::next_up for the f32 it sees (t > 0 here).
+            self.bound[l] = self.t[l].next_up();
             self.cull[l] = widen(self.bound[l]);
         }
     }
@@ -777,6 +778,7 @@ mod tests {
     use crate::accel::Bvh;
     use crate::geometry::testutil::{TestRays, TestRng, ray_f32};
     use crate::math::V3;
+    use crate::primitives::Hit;
     use crate::primitives::testutil::mixed_scene;
 
     /// Random rays (any octant, bundled in arrival order) through spheres, cylinders (capped
@@ -807,7 +809,7 @@ mod tests {
             let mut len = 1;
             while start < rays.len() {
                 let end = (start + len).min(rays.len());
-                let mut out = vec![Nearest::new(0.0); end - start];
+                let mut out = vec![Nearest::<f32>::new(0.0); end - start];
                 nearest(isa, &w, &prims, &rays[start..end], &mut out);
                 for (i, b) in out.iter().enumerate() {
                     let got = b.found.then(|| prims.hit(b.prim_ref, &rays[start + i], b.t, b.part));

@@ -15,6 +15,7 @@
 
 mod camera;
 mod lane;
+mod lights;
 mod paths;
 mod shade;
 
@@ -165,18 +166,25 @@ impl<'f> Tracer<'f> {
             let end = (next + BATCH as u64).min(total);
             let count = (end - next) as usize;
             self.slots.clear();
-            let pair = |i: usize| {
-                let q = next + i.min(count - 1) as u64;
-                ((q / spp as u64) as u32, samples.start + (q % spp as u64) as u32)
-            };
+            // The first pair's pixel and sample; each lane steps on from there.
+            let (mut px, mut s) = ((next / spp as u64) as u32, (next % spp as u64) as u32);
             for k in (0..count).step_by(N) {
-                let pairs: [(u32, u32); N] = std::array::from_fn(|l| pair(k + l));
-                let x = lane::U(pairs.map(|(px, _)| x0 + px));
-                let s = lane::U(pairs.map(|(_, s)| s));
-                camera::start::<N>(f, &mut self.paths, k, x, y, s, k as u32);
+                let mut x = [0u32; N];
+                let mut smp = [0u32; N];
+                for l in 0..N {
+                    (x[l], smp[l]) = (x0 + px, samples.start + s);
+                    // Lanes past the batch repeat its last pair.
+                    if k + l + 1 < count {
+                        s += 1;
+                        if s == spp {
+                            (px, s) = (px + 1, 0);
+                        }
+                    }
+                }
+                camera::start::<N>(f, &mut self.paths, k, lane::U(x), y, lane::U(smp), k as u32);
+                self.slots.extend(x[..N.min(count - k)].iter().map(|&xx| (xx - x0, V3::zero())));
             }
             self.paths.len = count;
-            self.slots.extend((0..count).map(|i| (pair(i).0, V3::zero())));
             let mut times = self.times;
             Self::lap(t, &mut times.generate);
             self.batch::<N>(inp, &mut times);

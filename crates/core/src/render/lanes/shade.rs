@@ -11,12 +11,12 @@
 //! itself.
 
 use super::lane::{F, M, U, V};
+use super::lights;
 use super::paths::Paths;
 use crate::layout::{ATTR_COLORS, ATTR_NORMALS, FlatScene, LIGHT_STAND_IN, MATERIAL_ALPHA, MATERIAL_TWO_SIDED};
 use crate::math::{Ray, V3};
 use crate::primitives::{Nearest, PrimKind};
 use crate::render::bsdf::MIN_ROUGHNESS;
-use crate::render::emitters;
 use crate::render::path::{self, NeeRay, SHADOW_REACH};
 use crate::render::sampler::{PCG_INC, PCG_MULT};
 use crate::render::shade::ShadeInputs;
@@ -31,8 +31,25 @@ const PI: f32 = std::f32::consts::PI;
 pub struct Facts {
     /// The scene has no environment light and no point or directional light.
     pub lanes_ok: bool,
-    /// Per material: shaded in lanes (kind [`Kind`], no texture, no alpha).
-    pub kind: Vec<Option<Kind>>,
+    /// Per material: what the lanes read of it, where they shade it (kind [`Kind`], no
+    /// texture, no alpha).
+    pub materials: Vec<Option<Material>>,
+    /// Area lights are sampled in lanes ([`lights::in_lanes`]).
+    pub lights_in_lanes: bool,
+}
+
+/// What the lanes read of a material, side by side.
+#[derive(Clone, Copy, Debug)]
+pub struct Material {
+    pub kind: Kind,
+    pub flags: u32,
+    /// Emissive (its emission is added where a path meets it).
+    pub emits: bool,
+    /// [`crate::layout::GpuMaterial::is_light`].
+    pub light: bool,
+    pub color: [f32; 3],
+    pub radiance: [f32; 3],
+    pub ior: f32,
 }
 
 /// The materials the lanes shade.
@@ -47,7 +64,7 @@ pub enum Kind {
 impl Facts {
     pub fn new(g: &FlatScene, num_lights: u32) -> Self {
         let delta = g.lights[..num_lights as usize].iter().any(|l| l.flags & LIGHT_STAND_IN == 0);
-        let kind = g
+        let materials = g
             .materials
             .iter()
             .map(|m| {
@@ -62,10 +79,18 @@ impl Facts {
                     MaterialKind::Dielectric => Some(Kind::Glass),
                     _ => None,
                 };
-                kind.filter(|_| untextured)
+                kind.filter(|_| untextured).map(|kind| Material {
+                    kind,
+                    flags: m.flags,
+                    emits: m.kind() == MaterialKind::Emissive,
+                    light: m.is_light(),
+                    color: m.color,
+                    radiance: m.radiance,
+                    ior: m.ior,
+                })
             })
             .collect();
-        Self { lanes_ok: g.environment.is_empty() && !delta, kind }
+        Self { lanes_ok: g.environment.is_empty() && !delta, materials, lights_in_lanes: lights::in_lanes(g) }
     }
 }
 
@@ -110,7 +135,7 @@ pub(super) fn shade<const N: usize>(
         let i = k + l;
         let b = &hits[l];
         let prim = b.prim_ref;
-        let material_of = |prim| prims.tag(prim).material as usize;
+        let mi = if b.found { prims.tag(prim).material as usize } else { 0 };
         let lane_kind = if !facts.lanes_ok {
             None
         } else if !b.found {
@@ -119,7 +144,7 @@ pub(super) fn shade<const N: usize>(
             let plain = prim.kind() != PrimKind::Triangle
                 || g.triangle_attrs.is_empty()
                 || g.triangle_attrs[prim.index()].flags & (ATTR_NORMALS | ATTR_COLORS) == 0;
-            facts.kind[material_of(prim)].filter(|_| plain).map(Some)
+            facts.materials[mi].filter(|_| plain).map(Some)
         };
         match lane_kind {
             None => {
@@ -133,9 +158,7 @@ pub(super) fn shade<const N: usize>(
                 }
             }
             Some(None) => on[l] = true,
-            Some(Some(kd)) => {
-                let mi = material_of(prim);
-                let m = &g.materials[mi];
+            Some(Some(m)) => {
                 on[l] = true;
                 is_hit[l] = true;
                 t[l] = b.t;
@@ -157,10 +180,10 @@ pub(super) fn shade<const N: usize>(
                         given[l] = true;
                     }
                 }
-                kind[l] = kd as u32;
+                kind[l] = m.kind as u32;
                 flags[l] = m.flags;
-                emits[l] = m.kind() == MaterialKind::Emissive;
-                sampled[l] = m.is_light() && matches!(prim.kind(), PrimKind::Triangle | PrimKind::Sphere);
+                emits[l] = m.emits;
+                sampled[l] = m.light && matches!(prim.kind(), PrimKind::Triangle | PrimKind::Sphere);
                 for a in 0..3 {
                     color[a][l] = m.color[a];
                     radiance[a][l] = m.radiance[a];
@@ -223,30 +246,14 @@ pub(super) fn shade<const N: usize>(
     let ng = front.select_v(n, -n);
     let x = o + d.scale(t);
 
-    // Lane after lane: the light sample of each Lambertian vertex, and a mirror's reflecting
-    // normal (surface::shading_frame).
+    // The light sample of each Lambertian vertex.
+    let want: [bool; N] = std::array::from_fn(|l| on[l] && cont.lane(l) && lambert.lane(l));
+    let ls = lights::sample(g, f, facts.lights_in_lanes, x, [u[0], u[1], u[2]], want);
+    // Lane after lane: a mirror's reflecting normal (surface::shading_frame).
     let mut ns = ng.rows();
-    let mut ls_on = [false; N];
-    let mut ls_dir = [[0.0f32; N]; 3];
-    let mut ls_dist = [0.0f32; N];
-    let mut ls_value = [[0.0f32; N]; 3];
-    let mut ls_pdf = [0.0f32; N];
-    let (xr, dr) = (x.rows(), d.rows());
+    let dr = d.rows();
     for l in 0..n_lanes {
-        if !(on[l] && cont.lane(l)) {
-            continue;
-        }
-        if kind[l] == Kind::Lambert as u32 {
-            if let Some(ls) = emitters::sample(g, f, v3(&xr, l), [u[0].0[l], u[1].0[l], u[2].0[l]]) {
-                ls_on[l] = true;
-                for a in 0..3 {
-                    ls_dir[a][l] = ls.dir[a];
-                    ls_value[a][l] = ls.value[a];
-                }
-                ls_dist[l] = ls.dist;
-                ls_pdf[l] = ls.pdf;
-            }
-        } else if kind[l] == Kind::Mirror as u32 {
+        if on[l] && cont.lane(l) && kind[l] == Kind::Mirror as u32 {
             let nl = v3(&nrm, l);
             let (_, sn) =
                 surface::shading_frame(&g.materials[material[l] as usize], front.lane(l), nl, nl, -v3(&dr, l));
@@ -260,13 +267,13 @@ pub(super) fn shade<const N: usize>(
 
     // The light sample's value (bsdf::eval's Lambertian branch, behind path::eval_above's
     // face test) and its shadow ray.
-    let wi = V::from_rows(&ls_dir);
+    let wi = ls.dir;
     let cos_i = wi.dot(ns);
     let above = wi.dot(ng).gt(zero) & cos_i.gt(zero);
     let fc = above.select_v(color.scale(cos_i * F::splat(INV_PI)), V::splat([0.0; 3]));
     let pdf_l = above.select(cos_i * F::splat(INV_PI), zero);
-    let value = beta.mul_elem(fc).mul_elem(V::from_rows(&ls_value)).scale(power_heuristic(F(ls_pdf), pdf_l));
-    let nee_m = cont & lambert & M::from_bools(&ls_on) & fc.max_component().gt(zero);
+    let value = beta.mul_elem(fc).mul_elem(ls.value).scale(power_heuristic(ls.pdf, pdf_l));
+    let nee_m = cont & lambert & ls.on & fc.max_component().gt(zero);
     let nee_o = spawn_origin(o, d, t, ng);
 
     // The BSDF sample. Glass: reflect or refract by the Fresnel term.
@@ -336,15 +343,15 @@ pub(super) fn shade<const N: usize>(
     put_u(&mut p.rng, k, rng, on_m);
 
     // Lane after lane: what goes on, and the shadow rays.
-    let (no, wv) = (nee_o.rows(), value.rows());
+    let (no, wv, lsd) = (nee_o.rows(), value.rows(), ls.dir.rows());
     for l in 0..n_lanes {
         if !on[l] {
             continue;
         }
         more[k + l] = go.lane(l);
         if nee_m.lane(l) {
-            let ray = Ray::new(v3(&no, l), v3(&ls_dir, l));
-            nee.push(((k + l) as u32, NeeRay { ray, dist: ls_dist[l] * SHADOW_REACH, value: v3(&wv, l) }));
+            let ray = Ray::new(v3(&no, l), v3(&lsd, l));
+            nee.push(((k + l) as u32, NeeRay { ray, dist: ls.dist.0[l] * SHADOW_REACH, value: v3(&wv, l) }));
         }
     }
 }
