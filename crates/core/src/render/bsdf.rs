@@ -13,7 +13,6 @@ use crate::layout::GpuMaterial;
 use crate::math::V3;
 use crate::scene::MaterialKind;
 
-const PI: f32 = std::f32::consts::PI;
 const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
 /// Mirrors with a GGX α below this are perfectly smooth: the microfacet terms lose all
 /// precision in f32 (D ~ 1/α² overflows the useful range) long before they matter visually.
@@ -108,8 +107,8 @@ fn to_local(v: V3<f32>, n: V3<f32>) -> V3<f32> {
 #[inline]
 pub fn cosine_hemisphere(u1: f32, u2: f32) -> V3<f32> {
     let r = u1.sqrt();
-    let phi = 2.0 * PI * u2;
-    V3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt())
+    let (sin_phi, cos_phi) = crate::math::sin_cos_turns(u2);
+    V3::new(r * cos_phi, r * sin_phi, (1.0 - u1).max(0.0).sqrt())
 }
 
 /// f·cos θ_i and the density [`sample`] would choose `wi` with, for a non-specular material.
@@ -193,6 +192,7 @@ pub fn sample(m: &GpuMaterial, wo: V3<f32>, ns: V3<f32>, front: bool, u: [f32; 3
 mod tests {
     use super::*;
     use crate::render::sampler::Sampler;
+    use std::f32::consts::PI;
 
     fn material(kind: MaterialKind, color: f32, roughness: f32) -> GpuMaterial {
         GpuMaterial { color: [color; 3], kind: kind as u32, ior: 1.5, roughness, ..Default::default() }

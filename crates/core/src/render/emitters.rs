@@ -109,8 +109,8 @@ pub fn sample(g: &FlatScene, frame: &FrameParams, p: V3<f32>, u: [f32; 3]) -> Op
             let s = &g.spheres[r.index()];
             let z = 1.0 - 2.0 * u[1];
             let rad = (1.0 - z * z).max(0.0).sqrt();
-            let phi = 2.0 * std::f32::consts::PI * u[2];
-            let n = V3::new(rad * phi.cos(), rad * phi.sin(), z);
+            let (sin_phi, cos_phi) = crate::math::sin_cos_turns(u[2]);
+            let n = V3::new(rad * cos_phi, rad * sin_phi, z);
             (V3::from_array(s.center) + n * s.radius, n, s.material)
         }
     };

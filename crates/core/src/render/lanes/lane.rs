@@ -92,6 +92,10 @@ impl<const N: usize> F<N> {
         self.cmp(o, |a, b| a < b)
     }
     #[inline(always)]
+    pub fn eq(self, o: Self) -> M<N> {
+        self.cmp(o, |a, b| a == b)
+    }
+    #[inline(always)]
     pub fn le(self, o: Self) -> M<N> {
         self.cmp(o, |a, b| a <= b)
     }
@@ -145,6 +149,33 @@ impl<const N: usize> F<N> {
         }
         F(r)
     }
+    /// [`crate::math::sin_cos_turns`] in every lane, by its operations.
+    #[inline(always)]
+    pub fn sin_cos_turns(self) -> (Self, Self) {
+        let s = F::splat;
+        let x = s(8.0) * self;
+        let octant = x.map(f32::floor);
+        let f = x - octant;
+        let half = (octant * s(0.5)).map(f32::floor);
+        let odd = (octant - s(2.0) * half).eq(s(1.0));
+        let g = odd.select(s(1.0) - f, f);
+        let t = g * s(std::f32::consts::FRAC_PI_4);
+        let t2 = t * t;
+        let sin =
+            t + t * t2 * (s(-1.0 / 6.0) + t2 * (s(1.0 / 120.0) + t2 * (s(-1.0 / 5040.0) + t2 * s(1.0 / 362_880.0))));
+        let cos = s(1.0)
+            + t2 * (s(-0.5)
+                + t2 * (s(1.0 / 24.0)
+                    + t2 * (s(-1.0 / 720.0) + t2 * (s(1.0 / 40_320.0) + t2 * s(-1.0 / 3_628_800.0)))));
+        let sin = odd.select(-sin, sin);
+        let quarter = half + odd.select(s(1.0), s(0.0));
+        let q = quarter - s(4.0) * (quarter * s(0.25)).map(f32::floor);
+        let (q0, q1, q2) = (q.eq(s(0.0)), q.eq(s(1.0)), q.eq(s(2.0)));
+        let sn = q0.select(sin, q1.select(cos, q2.select(-sin, -cos)));
+        let cs = q0.select(cos, q1.select(-sin, q2.select(-cos, sin)));
+        (sn, cs)
+    }
+
     /// Lanes `k .. k + N` of `v`.
     #[inline(always)]
     pub fn load(v: &[f32], k: usize) -> Self {
@@ -344,5 +375,33 @@ impl<const N: usize> Neg for V<N> {
     #[inline(always)]
     fn neg(self) -> Self {
         Self::new(-self.x, -self.y, -self.z)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The lanes' sine and cosine are the scalar ones bit for bit, over a whole turn and at
+    /// the octant edges.
+    #[test]
+    fn lane_sin_cos_equals_the_scalar_one() {
+        let mut u: Vec<f32> = (0..1 << 16).map(|k| k as f32 / 65536.0).collect();
+        for o in 0..8 {
+            let edge = o as f32 / 8.0;
+            u.extend([
+                edge,
+                f32::from_bits(edge.to_bits().wrapping_sub(1)).max(0.0),
+                f32::from_bits(edge.to_bits() + 1),
+            ]);
+        }
+        u.push(f32::from_bits(1.0f32.to_bits() - 1));
+        for chunk in u.chunks_exact(8) {
+            let (s, c) = F::<8>(chunk.try_into().unwrap()).sin_cos_turns();
+            for (l, &x) in chunk.iter().enumerate() {
+                let (ws, wc) = crate::math::sin_cos_turns(x);
+                assert_eq!((s.0[l].to_bits(), c.0[l].to_bits()), (ws.to_bits(), wc.to_bits()), "u = {x}");
+            }
+        }
     }
 }

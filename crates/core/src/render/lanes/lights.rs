@@ -115,17 +115,11 @@ pub(super) fn sample<const N: usize>(
     let q_tri = a.scale(b0) + b.scale(b1) + c.scale(b2);
     let (e1, e2) = (b - a, c - a);
     let n_tri = V::new(e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x).normalize();
-    // Uniform on a sphere; the angle's sine and cosine lane after lane.
+    // Uniform on a sphere.
     let z = one - F::splat(2.0) * u[1];
     let rad = (one - z * z).max(zero).sqrt();
-    let phi = F::splat(2.0 * std::f32::consts::PI) * u[2];
-    let (mut cos_phi, mut sin_phi) = ([0.0f32; N], [0.0f32; N]);
-    for l in 0..N {
-        if want[l] && sphere[l] {
-            (cos_phi[l], sin_phi[l]) = (phi.0[l].cos(), phi.0[l].sin());
-        }
-    }
-    let n_sph = V::new(rad * F(cos_phi), rad * F(sin_phi), z);
+    let (sin_phi, cos_phi) = u[2].sin_cos_turns();
+    let n_sph = V::new(rad * cos_phi, rad * sin_phi, z);
     let q_sph = a + n_sph.scale(F(corner[3]));
     let is_sphere = M::from_bools(&sphere);
     let (q, n) = (is_sphere.select_v(q_sph, q_tri), is_sphere.select_v(n_sph, n_tri));

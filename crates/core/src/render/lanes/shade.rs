@@ -25,7 +25,6 @@ use crate::render::surface;
 use crate::scene::MaterialKind;
 
 const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
-const PI: f32 = std::f32::consts::PI;
 
 /// What the lanes' shading may take for granted in a scene, found once per render.
 pub struct Facts {
@@ -289,17 +288,10 @@ pub(super) fn shade<const N: usize>(
     let mirror_w = schlick(color, cos_g);
     // Lambertian: a cosine-weighted direction about the shading normal; its angle's sine and
     // cosine lane after lane.
-    let phi = F::splat(2.0 * PI) * u[5];
     let has_bs = cont & (!lambert | color.max_component().gt(zero));
-    let mut cos_phi = [0.0f32; N];
-    let mut sin_phi = [0.0f32; N];
-    for l in 0..n_lanes {
-        if on[l] && has_bs.lane(l) && lambert.lane(l) {
-            (cos_phi[l], sin_phi[l]) = (phi.0[l].cos(), phi.0[l].sin());
-        }
-    }
+    let (sin_phi, cos_phi) = u[5].sin_cos_turns();
     let r = u[4].sqrt();
-    let local = V::new(r * F(cos_phi), r * F(sin_phi), (one - u[4]).max(zero).sqrt());
+    let local = V::new(r * cos_phi, r * sin_phi, (one - u[4]).max(zero).sqrt());
     let (tb, bb) = basis(ns);
     let world = (tb.scale(local.x) + bb.scale(local.y) + ns.scale(local.z)).normalize();
     let dir = lambert.select_v(world, glass.select_v(glass_dir, mirror_dir));
