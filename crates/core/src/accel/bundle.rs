@@ -100,21 +100,65 @@ impl Isa {
     }
 }
 
+/// Up to [`MAX_WIDTH`] rays field by field: origins `o[axis][lane]`, unit directions `d`.
+/// Lanes past those in use hold any finite ray (their answers are not read).
+#[derive(Clone, Copy, Debug)]
+pub struct BundleRays<const N: usize> {
+    pub o: [[f32; N]; 3],
+    pub d: [[f32; N]; 3],
+}
+
+impl BundleRays<MAX_WIDTH> {
+    /// `rays` (at most [`MAX_WIDTH`]), the last repeated in the lanes past them.
+    pub fn from_rays(rays: &[Ray<f32>]) -> Self {
+        let ray = |l: usize| rays[l.min(rays.len().saturating_sub(1))];
+        let field = |f: &dyn Fn(&Ray<f32>) -> [f32; 3]| -> [[f32; MAX_WIDTH]; 3] {
+            std::array::from_fn(|a| std::array::from_fn(|l| if rays.is_empty() { 0.0 } else { f(&ray(l))[a] }))
+        };
+        Self { o: field(&|r| r.origin.to_array()), d: field(&|r| r.dir.to_array()) }
+    }
+
+    /// The first `N` lanes.
+    #[inline(always)]
+    fn first<const N: usize>(&self) -> BundleRays<N> {
+        BundleRays {
+            o: std::array::from_fn(|a| std::array::from_fn(|l| self.o[a][l])),
+            d: std::array::from_fn(|a| std::array::from_fn(|l| self.d[a][l])),
+        }
+    }
+}
+
 /// The nearest hit in (0, ∞) of each of `rays` (at most `isa.width()`), into `out`: exactly
 /// what [`wide_traverse::nearest`] finds (its record is [`Primitives::hit`] of it).
 ///
 /// # Panics
 /// If `isa` does not run here, or `rays` is longer than its width or than `out`.
 pub fn nearest(isa: Isa, w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], out: &mut [Nearest<f32>]) {
-    assert!(isa.runs_here() && rays.len() <= isa.width() && out.len() >= rays.len());
+    assert!(rays.len() <= MAX_WIDTH);
+    nearest_lanes(isa, w, prims, &BundleRays::from_rays(rays), rays.len(), out)
+}
+
+/// [`nearest`] for the first `count` lanes of `rays`.
+pub fn nearest_lanes(
+    isa: Isa,
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    rays: &BundleRays<MAX_WIDTH>,
+    count: usize,
+    out: &mut [Nearest<f32>],
+) {
+    assert!(isa.runs_here() && count <= isa.width() && out.len() >= count);
+    if count == 0 {
+        return;
+    }
     match isa {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the processor has AVX-512 and AVX2 (asserted above).
-        Isa::Avx512 => unsafe { x86::nearest_avx512(w, prims, rays, out) },
+        Isa::Avx512 => unsafe { x86::nearest_avx512(w, prims, rays, count, out) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as above, AVX2.
-        Isa::Avx2 => unsafe { x86::nearest_avx2(w, prims, rays, out) },
-        _ => nearest_n::<4, super::simd::Scalar>(w, prims, rays, out),
+        Isa::Avx2 => unsafe { x86::nearest_avx2(w, prims, rays, count, out) },
+        _ => nearest_n::<4, super::simd::Scalar>(w, prims, &rays.first(), count, out),
     }
 }
 
@@ -124,15 +168,33 @@ pub fn nearest(isa: Isa, w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>]
 /// # Panics
 /// As [`nearest`], and if `tmax` is shorter than `rays`.
 pub fn occluded(isa: Isa, w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], tmax: &[f32]) -> u32 {
-    assert!(isa.runs_here() && rays.len() <= isa.width() && tmax.len() >= rays.len());
+    assert!(rays.len() <= MAX_WIDTH && tmax.len() >= rays.len());
+    let mut t = [0.0f32; MAX_WIDTH];
+    t[..rays.len()].copy_from_slice(&tmax[..rays.len()]);
+    occluded_lanes(isa, w, prims, &BundleRays::from_rays(rays), &t, rays.len())
+}
+
+/// [`occluded`] for the first `count` lanes of `rays`, each up to `tmax[lane]`.
+pub fn occluded_lanes(
+    isa: Isa,
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    rays: &BundleRays<MAX_WIDTH>,
+    tmax: &[f32; MAX_WIDTH],
+    count: usize,
+) -> u32 {
+    assert!(isa.runs_here() && count <= isa.width());
+    if count == 0 {
+        return 0;
+    }
     match isa {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: as in `nearest`.
-        Isa::Avx512 => unsafe { x86::occluded_avx512(w, prims, rays, tmax) },
+        // SAFETY: as in `nearest_lanes`.
+        Isa::Avx512 => unsafe { x86::occluded_avx512(w, prims, rays, tmax, count) },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: as in `nearest`.
-        Isa::Avx2 => unsafe { x86::occluded_avx2(w, prims, rays, tmax) },
-        _ => occluded_n::<4>(w, prims, rays, tmax),
+        // SAFETY: as in `nearest_lanes`.
+        Isa::Avx2 => unsafe { x86::occluded_avx2(w, prims, rays, tmax, count) },
+        _ => occluded_n::<4>(w, prims, &rays.first(), &std::array::from_fn(|l| tmax[l]), count),
     }
 }
 
@@ -142,23 +204,47 @@ mod x86 {
     use crate::accel::simd::Avx2;
 
     #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(super) fn nearest_avx512(w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], out: &mut [Nearest<f32>]) {
-        nearest_n::<16, Avx2>(w, prims, rays, out)
+    pub(super) fn nearest_avx512(
+        w: &WideBvh,
+        prims: &Primitives<f32>,
+        rays: &BundleRays<MAX_WIDTH>,
+        count: usize,
+        out: &mut [Nearest<f32>],
+    ) {
+        nearest_n::<16, Avx2>(w, prims, &rays.first(), count, out)
     }
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(super) fn nearest_avx2(w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], out: &mut [Nearest<f32>]) {
-        nearest_n::<8, Avx2>(w, prims, rays, out)
+    pub(super) fn nearest_avx2(
+        w: &WideBvh,
+        prims: &Primitives<f32>,
+        rays: &BundleRays<MAX_WIDTH>,
+        count: usize,
+        out: &mut [Nearest<f32>],
+    ) {
+        nearest_n::<8, Avx2>(w, prims, &rays.first(), count, out)
     }
 
     #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(super) fn occluded_avx512(w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], tmax: &[f32]) -> u32 {
-        occluded_n::<16>(w, prims, rays, tmax)
+    pub(super) fn occluded_avx512(
+        w: &WideBvh,
+        prims: &Primitives<f32>,
+        rays: &BundleRays<MAX_WIDTH>,
+        tmax: &[f32; MAX_WIDTH],
+        count: usize,
+    ) -> u32 {
+        occluded_n::<16>(w, prims, &rays.first(), &std::array::from_fn(|l| tmax[l]), count)
     }
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(super) fn occluded_avx2(w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], tmax: &[f32]) -> u32 {
-        occluded_n::<8>(w, prims, rays, tmax)
+    pub(super) fn occluded_avx2(
+        w: &WideBvh,
+        prims: &Primitives<f32>,
+        rays: &BundleRays<MAX_WIDTH>,
+        tmax: &[f32; MAX_WIDTH],
+        count: usize,
+    ) -> u32 {
+        occluded_n::<8>(w, prims, &rays.first(), &std::array::from_fn(|l| tmax[l]), count)
     }
 }
 
@@ -199,7 +285,6 @@ fn word(b: bool) -> i32 {
 struct Lanes<const N: usize> {
     /// The lanes that hold a ray.
     on: u32,
-    rays: [Ray<f32>; N],
     org: [[f32; N]; 3],
     dir: [[f32; N]; 3],
     org_near: [[f32; N]; 3],
@@ -216,17 +301,15 @@ struct Lanes<const N: usize> {
 }
 
 impl<const N: usize> Lanes<N> {
-    /// [`RayPre::new`]'s values, lane by lane, by its operations.
+    /// [`RayPre::new`]'s values, lane by lane, by its operations, for the first `count` of
+    /// the rays `r` (the others stay off).
     #[inline(always)]
-    fn new(rays: &[Ray<f32>]) -> Self {
-        debug_assert!(!rays.is_empty() && rays.len() <= N);
-        // Missing lanes repeat the last ray and stay off.
-        let rays: [Ray<f32>; N] = std::array::from_fn(|l| rays[l.min(rays.len() - 1)]);
+    fn new(r: &BundleRays<N>, count: usize) -> Self {
+        debug_assert!(count > 0 && count <= N);
         let mut s = Self {
-            on: (1u32 << rays.len()) - 1,
-            rays,
-            org: [[0.0; N]; 3],
-            dir: [[0.0; N]; 3],
+            on: ((1u64 << count) - 1) as u32,
+            org: r.o,
+            dir: r.d,
             org_near: [[0.0; N]; 3],
             org_far: [[0.0; N]; 3],
             inv: [[0.0; N]; 3],
@@ -238,15 +321,13 @@ impl<const N: usize> Lanes<N> {
             sz: [0.0; N],
         };
         for l in 0..N {
-            let (o, d) = (rays[l].origin.to_array(), rays[l].dir.to_array());
+            let (o, d) = ([r.o[0][l], r.o[1][l], r.o[2][l]], [r.d[0][l], r.d[1][l], r.d[2][l]]);
             for a in 0..3 {
                 let parallel = d[a].abs() < super::simd::TINY;
                 let pinv = if d[a] < 0.0 { -f32::INFINITY } else { f32::INFINITY };
                 let inv = if parallel { pinv } else { 1.0 / d[a] };
                 let shift = super::simd::parallel_shift(o[a]).copysign(inv);
                 let shift = if parallel { shift } else { 0.0 };
-                s.org[a][l] = o[a];
-                s.dir[a][l] = d[a];
                 s.inv[a][l] = inv;
                 s.inv_far[a][l] = if parallel { inv } else { inv * super::simd::far_grow() };
                 s.neg[a][l] = inv < 0.0;
@@ -283,6 +364,15 @@ impl<const N: usize> Lanes<N> {
             s.sz[l] = sz;
         }
         s
+    }
+
+    /// The ray of lane `l`.
+    #[inline(always)]
+    fn ray(&self, l: usize) -> Ray<f32> {
+        Ray::new(
+            crate::math::V3::new(self.org[0][l], self.org[1][l], self.org[2][l]),
+            crate::math::V3::new(self.dir[0][l], self.dir[1][l], self.dir[2][l]),
+        )
     }
 
     /// Which lanes of `mask` enter child `c` of `node` within [0, cull] (by
@@ -556,13 +646,11 @@ impl<const N: usize> Best<N> {
 fn nearest_n<const N: usize, K: Kernels>(
     w: &WideBvh,
     prims: &Primitives<f32>,
-    rays: &[Ray<f32>],
+    rays: &BundleRays<N>,
+    count: usize,
     out: &mut [Nearest<f32>],
 ) {
-    if rays.is_empty() {
-        return;
-    }
-    let lanes = Lanes::<N>::new(rays);
+    let lanes = Lanes::<N>::new(rays, count);
     let mut best = Best::<N> {
         t: [f32::INFINITY; N],
         prim: [u32::MAX; N],
@@ -572,10 +660,10 @@ fn nearest_n<const N: usize, K: Kernels>(
         cull: [f32::INFINITY; N],
     };
     if !prims.planes.is_empty() {
-        for (l, ray) in rays.iter().enumerate() {
+        for l in 0..count {
             let mut n = best.lane(l);
             for r in prims.plane_refs() {
-                prims.offer_nearest(r, ray, 0.0, &mut n);
+                prims.offer_nearest(r, &lanes.ray(l), 0.0, &mut n);
             }
             best.set_lane(l, &n);
         }
@@ -583,7 +671,7 @@ fn nearest_n<const N: usize, K: Kernels>(
     if !w.is_empty() {
         walk_nearest::<N, K>(w, prims, &lanes, &mut best);
     }
-    for (l, o) in out[..rays.len()].iter_mut().enumerate() {
+    for (l, o) in out[..count].iter_mut().enumerate() {
         *o = best.lane(l);
     }
 }
@@ -607,7 +695,7 @@ fn walk_nearest<const N: usize, K: Kernels>(
                 let l = m.trailing_zeros() as usize;
                 m &= m - 1;
                 let mut n = best.lane(l);
-                wide_traverse::nearest_from::<K>(w, prims, &RayPre::new(&lanes.rays[l]), word, &mut n);
+                wide_traverse::nearest_from::<K>(w, prims, &RayPre::new(&lanes.ray(l)), word, &mut n);
                 best.set_lane(l, &n);
             }
         } else if word & LEAF_BIT == 0 {
@@ -692,17 +780,22 @@ fn leaf_nearest<const N: usize>(
 /// The occlusion walk of up to N rays: every leaf a live lane's box test enters, until each
 /// lane has a hit.
 #[inline(always)]
-fn occluded_n<const N: usize>(w: &WideBvh, prims: &Primitives<f32>, rays: &[Ray<f32>], tmax: &[f32]) -> u32 {
-    if rays.is_empty() {
-        return 0;
-    }
-    let lanes = Lanes::<N>::new(rays);
-    let bound: [f32; N] = std::array::from_fn(|l| tmax[l.min(rays.len() - 1)]);
+fn occluded_n<const N: usize>(
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    rays: &BundleRays<N>,
+    bound: &[f32; N],
+    count: usize,
+) -> u32 {
+    let lanes = Lanes::<N>::new(rays, count);
+    let bound = *bound;
     let cull: [f32; N] = std::array::from_fn(|l| widen(bound[l]));
     let mut done = 0u32;
-    for (l, ray) in rays.iter().enumerate() {
-        if prims.plane_refs().any(|r| prims.roots(r, ray, 0.0, bound[l]).len > 0) {
-            done |= 1 << l;
+    if !prims.planes.is_empty() {
+        for l in 0..count {
+            if prims.plane_refs().any(|r| prims.roots(r, &lanes.ray(l), 0.0, bound[l]).len > 0) {
+                done |= 1 << l;
+            }
         }
     }
     if w.is_empty() || done == lanes.on {

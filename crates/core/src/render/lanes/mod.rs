@@ -21,8 +21,8 @@ mod shade;
 
 use super::path::NeeRay;
 use super::shade::ShadeInputs;
-use crate::accel::bundle::{self, Isa, MAX_WIDTH};
-use crate::math::{Ray, V3};
+use crate::accel::bundle::{self, BundleRays, Isa, MAX_WIDTH};
+use crate::math::V3;
 use crate::primitives::Nearest;
 use paths::Paths;
 pub use shade::Facts;
@@ -222,7 +222,7 @@ impl<'f> Tracer<'f> {
     /// Traces the batch's paths to their ends; each path's radiance goes to its slot.
     #[inline(always)]
     fn batch<const N: usize>(&mut self, inp: &ShadeInputs, times: &mut StageTimes) {
-        let mut rays = [Ray::new(V3::zero(), V3::zero()); MAX_WIDTH];
+        let mut rays = BundleRays { o: [[0.0; MAX_WIDTH]; 3], d: [[0.0; MAX_WIDTH]; 3] };
         let mut tmax = [0.0f32; MAX_WIDTH];
         while self.paths.len > 0 {
             let mut t = self.clock();
@@ -231,10 +231,12 @@ impl<'f> Tracer<'f> {
             let mut k = 0;
             while k < live {
                 let n = N.min(live - k);
-                for (l, r) in rays[..n].iter_mut().enumerate() {
-                    *r = self.paths.ray(k + l);
+                // The lanes past n hold other paths' rays (the arrays are padded): not read.
+                for a in 0..3 {
+                    rays.o[a][..N].copy_from_slice(&self.paths.o[a][k..k + N]);
+                    rays.d[a][..N].copy_from_slice(&self.paths.d[a][k..k + N]);
                 }
-                bundle::nearest(self.isa, inp.wide, inp.prims, &rays[..n], &mut self.hits);
+                bundle::nearest_lanes(self.isa, inp.wide, inp.prims, &rays, n, &mut self.hits);
                 t = Self::lap(t, &mut times.trace);
                 shade::shade::<N>(inp, self.facts, &mut self.paths, k, n, &self.hits, &mut self.more, &mut self.shadow);
                 t = Self::lap(t, &mut times.shade);
@@ -243,10 +245,13 @@ impl<'f> Tracer<'f> {
             // Shadow rays: each unblocked one adds its light to its path.
             for chunk in self.shadow.chunks(N) {
                 for (l, (_, s)) in chunk.iter().enumerate() {
-                    rays[l] = s.ray;
+                    for a in 0..3 {
+                        rays.o[a][l] = s.ray.origin[a];
+                        rays.d[a][l] = s.ray.dir[a];
+                    }
                     tmax[l] = s.dist;
                 }
-                let blocked = bundle::occluded(self.isa, inp.wide, inp.prims, &rays[..chunk.len()], &tmax);
+                let blocked = bundle::occluded_lanes(self.isa, inp.wide, inp.prims, &rays, &tmax, chunk.len());
                 for (l, (i, s)) in chunk.iter().enumerate() {
                     if blocked >> l & 1 == 0 {
                         self.paths.add_to_sum(*i as usize, s.value);
