@@ -68,3 +68,21 @@ fn lanes_equal_the_one_by_one_tracer_on_the_golden_scenes() {
     let seed = prepared(&root().join("assets/scenes/seed.toml"));
     check("seed.toml", &seed, 3, 2, 300, 0);
 }
+
+/// The progressive accumulation (`strahl converge`, the viewer's CPU side) adds the same
+/// samples in the same order with either tracer: 2 then 3 samples, bit for bit.
+#[test]
+fn progressive_accumulations_are_equal() {
+    let prep = std::sync::Arc::new(prepared(&root().join("tests/golden/cornell.toml")));
+    let frame = prep.frame(29, 17);
+    let run = |tracer| {
+        let mut p = cpu::PathAccumulator::with_tracer(prep.clone(), frame, tracer);
+        p.add_samples(2);
+        p.add_samples(3);
+        p.image().pixels.iter().map(|c| c.map(f32::to_bits)).collect::<Vec<_>>()
+    };
+    let want = run(PathTracer::OneByOne);
+    for isa in Isa::available() {
+        assert!(run(PathTracer::Lanes(isa)) == want, "{isa:?} lanes accumulate another image");
+    }
+}

@@ -23,14 +23,20 @@ pub enum PathTracer {
 }
 
 impl Default for PathTracer {
-    /// The lanes, unless STRAHL_CPU_TRACER says `one-by-one` (or names lanes: `avx512`,
-    /// `avx2`, `portable`), for comparisons from the command line.
+    /// The widest lanes this processor runs; one path at a time on an x86-64 without AVX2,
+    /// where the portable lanes' fused multiply-adds are library calls (measured twice as slow
+    /// as one path at a time on the Cornell box). STRAHL_CPU_TRACER = `one-by-one`, `avx2` or
+    /// `portable` chooses, for comparisons from the command line.
     fn default() -> Self {
         match std::env::var("STRAHL_CPU_TRACER").as_deref() {
-            Ok("one-by-one") => PathTracer::OneByOne,
-            Ok("avx2") if Isa::Avx2.runs_here() => PathTracer::Lanes(Isa::Avx2),
-            Ok("portable") => PathTracer::Lanes(Isa::Portable),
-            _ => PathTracer::Lanes(Isa::detect()),
+            Ok("one-by-one") => return PathTracer::OneByOne,
+            Ok("avx2") if Isa::Avx2.runs_here() => return PathTracer::Lanes(Isa::Avx2),
+            Ok("portable") => return PathTracer::Lanes(Isa::Portable),
+            _ => {}
+        }
+        match Isa::detect() {
+            Isa::Portable if cfg!(target_arch = "x86_64") => PathTracer::OneByOne,
+            isa => PathTracer::Lanes(isa),
         }
     }
 }
@@ -149,13 +155,19 @@ pub struct PathAccumulator {
     frame: FrameParams,
     sums: Vec<[f32; 3]>,
     samples: u32,
+    tracer: PathTracer,
 }
 
 impl PathAccumulator {
     /// An empty accumulation for `frame` (whole image; its `spp` and `sample_base` are ignored).
     pub fn new(prep: Arc<Prepared>, frame: FrameParams) -> Self {
+        Self::with_tracer(prep, frame, PathTracer::default())
+    }
+
+    /// [`PathAccumulator::new`] traced by `tracer`.
+    pub fn with_tracer(prep: Arc<Prepared>, frame: FrameParams, tracer: PathTracer) -> Self {
         let n = frame.width as usize * frame.height as usize;
-        Self { prep, frame, sums: vec![[0.0; 3]; n], samples: 0 }
+        Self { prep, frame, sums: vec![[0.0; 3]; n], samples: 0, tracer }
     }
 
     /// Adds samples `samples() .. samples() + n` to every pixel.
@@ -164,14 +176,30 @@ impl PathAccumulator {
         let prep = &self.prep;
         let inputs = ShadeInputs { prims: &prep.prims, wide: &prep.wide, gpu: &prep.gpu, frame: &frame };
         let first = self.samples;
-        self.sums.par_chunks_mut(frame.width as usize).enumerate().for_each(|(y, row)| {
-            for (x, px) in row.iter_mut().enumerate() {
-                for s in first..first + n {
-                    let c = path::sample_pixel(&inputs, x as u32, y as u32, s);
-                    *px = [px[0] + c.x, px[1] + c.y, px[2] + c.z];
-                }
+        let rows = self.sums.par_chunks_mut(frame.width as usize).enumerate();
+        match self.tracer {
+            PathTracer::Lanes(isa) => {
+                let facts = lanes::Facts::new(&prep.gpu, frame.num_lights);
+                rows.for_each_init(
+                    || lanes::Tracer::new(isa, &facts, false),
+                    |tracer, (y, row)| {
+                        let width = row.len() as u32;
+                        tracer.row(&inputs, y as u32, 0, width, first..first + n, &mut |x, c| {
+                            let px = &mut row[x];
+                            *px = [px[0] + c.x, px[1] + c.y, px[2] + c.z];
+                        });
+                    },
+                );
             }
-        });
+            PathTracer::OneByOne => rows.for_each(|(y, row)| {
+                for (x, px) in row.iter_mut().enumerate() {
+                    for s in first..first + n {
+                        let c = path::sample_pixel(&inputs, x as u32, y as u32, s);
+                        *px = [px[0] + c.x, px[1] + c.y, px[2] + c.z];
+                    }
+                }
+            }),
+        }
         self.samples += n;
     }
 

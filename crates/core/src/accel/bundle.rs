@@ -22,6 +22,10 @@
 //! every lane gets exactly the answer of [`super::wide_traverse::nearest`] (and of brute
 //! force): the same `t`, the same primitive, the same tie rule. Only tmin = 0 is served.
 
+// Lane loops index several arrays with the lane: the form the compiler turns into vector
+// instructions.
+#![allow(clippy::needless_range_loop)]
+
 use super::simd::{Kernels, RayPre, is_triangle, widen};
 use super::wide::{EMPTY_CHILD, EMPTY_PRIM, LANES, LEAF_BIT, LeafBlock, MAX_DEPTH, WIDTH, WideBvh};
 use super::wide_traverse;
@@ -499,7 +503,7 @@ impl<const N: usize> Lanes<N> {
             };
             let side = |tc: f32| {
                 let alpha = (o_axial + tc * d_axial) / len;
-                alpha >= 0.0 && alpha <= 1.0
+                (0.0..=1.0).contains(&alpha)
             };
             take(ok && side(t0), t0, Part::Surface as u8);
             take(ok && t1 != t0 && side(t1), t1, Part::Surface as u8);

@@ -5,6 +5,10 @@
 //! computes, lane for lane, what the same formula computes on f32 (`V3<f32>`), provided it
 //! performs the same operations in the same order.
 
+// Lane loops index several arrays with the lane: the form the compiler turns into vector
+// instructions.
+#![allow(clippy::needless_range_loop)]
+
 use std::ops::{Add, BitAnd, BitOr, BitXor, Div, Mul, Neg, Not, Shl, Shr, Sub};
 
 #[derive(Clone, Copy, Debug)]

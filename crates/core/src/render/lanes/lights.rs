@@ -3,6 +3,10 @@
 //! lane after lane, the point on it and the sample's value in lanes, by its operations.
 //! Elsewhere each lane calls [`emitters::sample`] itself.
 
+// Lane loops index several arrays with the lane: the form the compiler turns into vector
+// instructions.
+#![allow(clippy::needless_range_loop)]
+
 use super::lane::{F, M, U, V};
 use crate::layout::{FlatScene, FrameParams, MATERIAL_TWO_SIDED};
 use crate::math::V3;
