@@ -337,7 +337,6 @@ impl<const N: usize> Best<N> {
     /// [`Nearest::offer`] of primitive `prim` at `t[l]` (part `part[l]`) for lanes `hits`.
     #[inline(always)]
     fn offer(&mut self, hits: u32, prim: u32, t: &[f32; N], part: &[u8; N]) {
-        let mut changed = [0i32; N];
         for l in 0..N {
             let on = hits >> l & 1 != 0;
             let take = on && (t[l] < self.t[l] || (t[l] == self.t[l] && prim < self.prim[l]));
@@ -345,15 +344,10 @@ impl<const N: usize> Best<N> {
             self.prim[l] = if take { prim } else { self.prim[l] };
             self.part[l] = if take { part[l] } else { self.part[l] };
             self.found[l] |= take;
-            changed[l] = word(take);
-        }
-        let mut m = mask_of(&changed);
-        while m != 0 {
-            let l = m.trailing_zeros() as usize;
-            m &= m - 1;
-            // primitives::next_up for the f32 it sees (t > 0 here).
-            self.bound[l] = self.t[l].next_up();
-            self.cull[l] = widen(self.bound[l]);
+            // Nearest::search_bound: the next f32 above t (t > 0 and finite here).
+            let bound = f32::from_bits(t[l].to_bits() + 1);
+            self.bound[l] = if take { bound } else { self.bound[l] };
+            self.cull[l] = if take { widen(bound) } else { self.cull[l] };
         }
     }
 }
@@ -404,6 +398,9 @@ fn walk_nearest<const N: usize, K: Kernels>(
     let mut stack = Stack::<N>::new();
     let (mut word, mut mask) = (0u32, lanes.on);
     let mut t = [0.0f32; N];
+    // Per node: each child's entry distances, and the children entered.
+    let mut tn = [[0.0f32; N]; WIDTH];
+    let mut entered = [(0u32, 0.0f32, 0usize); WIDTH];
     let mut part = [0u8; N];
     loop {
         if mask.count_ones() <= HYBRID {
@@ -418,8 +415,6 @@ fn walk_nearest<const N: usize, K: Kernels>(
             }
         } else if word & LEAF_BIT == 0 {
             let node = w.node(word);
-            let mut tn = [[0.0f32; N]; WIDTH];
-            let mut entered = [(0u32, 0.0f32, 0usize); WIDTH];
             let mut n_in = 0;
             for c in 0..WIDTH {
                 if node.child[c] == EMPTY_CHILD {
