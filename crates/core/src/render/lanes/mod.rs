@@ -31,7 +31,7 @@ use web_time::Instant;
 
 /// Paths per batch: enough that bundles stay full for most rounds, few enough that the batch
 /// stays in the first two cache levels.
-const BATCH: usize = 256;
+const BATCH: usize = 512;
 
 /// Where the lane tracer's time went.
 #[derive(Clone, Copy, Debug, Default)]
