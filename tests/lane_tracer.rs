@@ -1,6 +1,6 @@
 //! The CPU's lane path tracer (`render/lanes`) against its reference, the one-path-at-a-time
 //! tracer (`render/path`): the same image bit for bit, with every lane set this processor
-//! runs, on every shipped scene and on the golden scenes (area lights, glass, smooth and rough
+//! runs and each walk of the rays after the camera's (bundles, one ray at a time, measured), on every shipped scene and on the golden scenes (area lights, glass, smooth and rough
 //! mirrors, textures, an emissive texture, an environment map), and on sample counts and row
 //! widths that leave batches and bundles part full.
 
@@ -11,6 +11,7 @@ use strahl_core::accel::bundle::Isa;
 use strahl_core::cpu::{self, PathTracer};
 use strahl_core::image::Region;
 use strahl_core::render::Prepared;
+use strahl_core::render::lanes::Walk;
 use strahl_core::scene::{RenderMode, Scene};
 
 fn prepared(path: &Path) -> Prepared {
@@ -32,9 +33,15 @@ fn bits(prep: &Prepared, w: u32, h: u32, spp: u32, base: u32, tracer: PathTracer
 fn check(name: &str, prep: &Prepared, w: u32, h: u32, spp: u32, base: u32) -> usize {
     let want = bits(prep, w, h, spp, base, PathTracer::OneByOne);
     for isa in Isa::available() {
-        let got = bits(prep, w, h, spp, base, PathTracer::Lanes(isa));
-        let differ = want.iter().zip(&got).filter(|(a, b)| a != b).count();
-        assert_eq!(differ, 0, "{name} ({w}x{h}, {spp} spp from {base}): {differ} pixels differ with {isa:?} lanes");
+        for tracer in [
+            PathTracer::Lanes(isa),
+            PathTracer::LanesWalking(isa, Walk::Bundles),
+            PathTracer::LanesWalking(isa, Walk::OneRay),
+        ] {
+            let got = bits(prep, w, h, spp, base, tracer);
+            let differ = want.iter().zip(&got).filter(|(a, b)| a != b).count();
+            assert_eq!(differ, 0, "{name} ({w}x{h}, {spp} spp from {base}): {differ} pixels differ with {tracer:?}");
+        }
     }
     // The image is not black: the comparison judged light transport.
     let lit = want.iter().filter(|p| p.iter().any(|&c| f32::from_bits(c) > 0.0)).count();

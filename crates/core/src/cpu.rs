@@ -15,11 +15,25 @@ use std::sync::atomic::{AtomicU64, Ordering};
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PathTracer {
     /// Many paths at a time, their rays in bundles of SIMD lanes ([`crate::render::lanes`]):
-    /// the default, with the widest lanes this processor has.
+    /// the default, with the widest lanes this processor has. The rays after the camera's
+    /// take the walk measured faster.
     Lanes(Isa),
+    /// [`PathTracer::Lanes`] with every ray after the camera's taking `Walk` (for tests and
+    /// comparisons).
+    LanesWalking(Isa, lanes::Walk),
     /// One path at a time ([`crate::render::path`], the WGSL megakernel's mirror): the
     /// reference the lane tracer is tested against.
     OneByOne,
+}
+
+impl PathTracer {
+    /// The walk forced on the rays after the camera's, if any.
+    fn walk(self) -> Option<lanes::Walk> {
+        match self {
+            PathTracer::LanesWalking(_, w) => Some(w),
+            _ => None,
+        }
+    }
 }
 
 impl Default for PathTracer {
@@ -100,9 +114,9 @@ fn render_region_timed(
     let done = AtomicU64::new(0);
     let rows = img.pixels.par_chunks_mut(region.width() as usize).enumerate();
     match (mode, tracer) {
-        (RenderMode::Path, PathTracer::Lanes(isa)) => {
+        (RenderMode::Path, PathTracer::Lanes(isa) | PathTracer::LanesWalking(isa, _)) => {
             let samples = frame.sample_base..frame.sample_base + frame.spp;
-            let facts = lanes::Facts::new(&prep.gpu, frame.num_lights);
+            let facts = lanes::Facts::new(&prep.gpu, frame.num_lights, tracer.walk());
             // Each worker's tracer, its time added to `times` when the worker is done.
             struct Worker<'f, 't> {
                 tracer: lanes::Tracer<'f>,
@@ -178,8 +192,8 @@ impl PathAccumulator {
         let first = self.samples;
         let rows = self.sums.par_chunks_mut(frame.width as usize).enumerate();
         match self.tracer {
-            PathTracer::Lanes(isa) => {
-                let facts = lanes::Facts::new(&prep.gpu, frame.num_lights);
+            PathTracer::Lanes(isa) | PathTracer::LanesWalking(isa, _) => {
+                let facts = lanes::Facts::new(&prep.gpu, frame.num_lights, self.tracer.walk());
                 rows.for_each_init(
                     || lanes::Tracer::new(isa, &facts, false),
                     |tracer, (y, row)| {

@@ -22,10 +22,12 @@ mod shade;
 use super::path::NeeRay;
 use super::shade::ShadeInputs;
 use crate::accel::bundle::{self, BundleRays, Isa, MAX_WIDTH};
-use crate::math::V3;
-use crate::primitives::Nearest;
+use crate::accel::wide_traverse;
+use crate::math::{Ray, V3};
+use crate::primitives::{Hit, Nearest};
 use paths::Paths;
 pub use shade::Facts;
+
 use std::time::Duration;
 use web_time::Instant;
 
@@ -59,6 +61,60 @@ impl StageTimes {
     }
 }
 
+/// How a batch's rays walk the tree: as bundles of lanes ([`bundle`]), or each alone, several
+/// in flight ([`wide_traverse::nearest_many`]; shadow rays one after the other).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Walk {
+    Bundles,
+    OneRay,
+}
+
+/// The rays after the camera's, and the shadow rays: the two kinds [`Choice`] decides apart.
+pub(super) const RAYS: usize = 0;
+pub(super) const SHADOWS: usize = 1;
+
+/// Which walk serves each kind of ray faster here, measured once per render (shared by its
+/// threads through [`Facts`]): the first batches alternate the two walks and time them, until each has walked [`Choice::ENOUGH`] rays; the faster per ray
+/// is kept. Bundles pay where rays of different directions still meet the same nodes and
+/// quadrics (the seed scene); where they part in a large mesh, each ray alone, with several
+/// in flight hiding the memory latency, is faster. Both walks find the same hits, so the
+/// choice changes the time only, never the image.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Choice {
+    /// Per kind and walk: time and rays measured.
+    spent: [[Duration; 2]; 2],
+    rays: [[usize; 2]; 2],
+    decided: [Option<Walk>; 2],
+}
+
+impl Choice {
+    const ENOUGH: usize = 4096;
+
+    /// Decided for both kinds where `walk` is given, else to be measured.
+    fn forced(walk: Option<Walk>) -> Self {
+        Self { decided: [walk, walk], ..Self::default() }
+    }
+
+    pub(super) fn decided(&self, kind: usize) -> bool {
+        self.decided[kind].is_some()
+    }
+
+    /// The walk for rays of `kind` in batch `batch`.
+    pub(super) fn walk(&self, kind: usize, batch: u32) -> Walk {
+        self.decided[kind].unwrap_or(if batch % 2 == 0 { Walk::Bundles } else { Walk::OneRay })
+    }
+
+    pub(super) fn record(&mut self, kind: usize, walk: Walk, spent: Duration, rays: usize) {
+        let w = walk as usize;
+        self.spent[kind][w] += spent;
+        self.rays[kind][w] += rays;
+        if self.rays[kind].iter().all(|&r| r >= Self::ENOUGH) {
+            let per_ray = |w: usize| self.spent[kind][w].as_secs_f64() / self.rays[kind][w] as f64;
+            self.decided[kind] = Some(if per_ray(0) <= per_ray(1) { Walk::Bundles } else { Walk::OneRay });
+        }
+    }
+}
+
 /// The lane tracer's working memory, kept from batch to batch (one per thread).
 pub struct Tracer<'f> {
     isa: Isa,
@@ -70,6 +126,15 @@ pub struct Tracer<'f> {
     slots: Vec<(u32, V3<f32>)>,
     hits: [Nearest<f32>; MAX_WIDTH],
     shadow: Vec<(u32, NeeRay)>,
+    /// The one-ray walks' rays and answers.
+    one_rays: Vec<Ray<f32>>,
+    one_hits: Vec<Option<Hit<f32>>>,
+    nearest: Vec<Nearest<f32>>,
+    /// How rays after the camera's walk the tree: this tracer's copy of `facts.choice` once
+    /// that is decided.
+    choice: Choice,
+    /// Batches traced (the choice alternates the walks while it measures).
+    batches: u32,
     /// Where the time went, when timed.
     pub times: StageTimes,
     timed: bool,
@@ -88,6 +153,11 @@ impl<'f> Tracer<'f> {
             slots: Vec::with_capacity(BATCH),
             hits: [Nearest::new(0.0); MAX_WIDTH],
             shadow: Vec::with_capacity(cap),
+            one_rays: Vec::with_capacity(cap),
+            one_hits: Vec::with_capacity(cap),
+            nearest: Vec::with_capacity(cap),
+            choice: Choice::default(),
+            batches: 0,
             times: StageTimes::default(),
             timed,
         }
@@ -212,6 +282,14 @@ impl<'f> Tracer<'f> {
         })
     }
 
+    /// Takes the render's choice of walks where this tracer has none yet.
+    #[inline]
+    fn sync_choice(&mut self) {
+        if !(self.choice.decided(RAYS) && self.choice.decided(SHADOWS)) {
+            self.choice = self.facts.walks();
+        }
+    }
+
     /// Path `i` has ended: its radiance (0 where not finite) goes to its slot.
     #[inline(always)]
     fn finish(&mut self, i: usize) {
@@ -224,39 +302,90 @@ impl<'f> Tracer<'f> {
     fn batch<const N: usize>(&mut self, inp: &ShadeInputs, times: &mut StageTimes) {
         let mut rays = BundleRays { o: [[0.0; MAX_WIDTH]; 3], d: [[0.0; MAX_WIDTH]; 3] };
         let mut tmax = [0.0f32; MAX_WIDTH];
+        let batch = self.batches;
+        self.batches += 1;
+        let mut camera = true;
         while self.paths.len > 0 {
             let mut t = self.clock();
             self.shadow.clear();
             let live = self.paths.len;
+            // Camera rays walk as bundles; later rays as the choice says.
+            self.sync_choice();
+            let walk = if camera { Walk::Bundles } else { self.choice.walk(RAYS, batch) };
+            let measuring = !camera && !self.choice.decided(RAYS);
+            let mut spent = Duration::ZERO;
+            if walk == Walk::OneRay {
+                let start = Instant::now();
+                self.one_rays.clear();
+                self.one_rays.extend((0..live).map(|i| self.paths.ray(i)));
+                self.one_hits.clear();
+                self.one_hits.resize(live, None);
+                wide_traverse::nearest_many(
+                    inp.wide,
+                    inp.prims,
+                    &self.one_rays,
+                    0.0,
+                    f32::INFINITY,
+                    &mut self.one_hits,
+                );
+                self.nearest.clear();
+                self.nearest.extend(self.one_hits.iter().map(|h| match h {
+                    Some(h) => Nearest { t: h.t, prim_ref: h.prim_ref, part: h.part, found: true },
+                    None => Nearest::new(f32::INFINITY),
+                }));
+                spent = start.elapsed();
+                t = Self::lap(t, &mut times.trace);
+            }
             let mut k = 0;
             while k < live {
                 let n = N.min(live - k);
-                // The lanes past n hold other paths' rays (the arrays are padded): not read.
-                for a in 0..3 {
-                    rays.o[a][..N].copy_from_slice(&self.paths.o[a][k..k + N]);
-                    rays.d[a][..N].copy_from_slice(&self.paths.d[a][k..k + N]);
+                if walk == Walk::Bundles {
+                    let start = measuring.then(Instant::now);
+                    // The lanes past n hold other paths' rays (the arrays are padded): not read.
+                    for a in 0..3 {
+                        rays.o[a][..N].copy_from_slice(&self.paths.o[a][k..k + N]);
+                        rays.d[a][..N].copy_from_slice(&self.paths.d[a][k..k + N]);
+                    }
+                    bundle::nearest_lanes(self.isa, inp.wide, inp.prims, &rays, n, &mut self.hits);
+                    spent += start.map_or(Duration::ZERO, |s| s.elapsed());
+                    t = Self::lap(t, &mut times.trace);
                 }
-                bundle::nearest_lanes(self.isa, inp.wide, inp.prims, &rays, n, &mut self.hits);
-                t = Self::lap(t, &mut times.trace);
-                shade::shade::<N>(inp, self.facts, &mut self.paths, k, n, &self.hits, &mut self.more, &mut self.shadow);
+                let hits = if walk == Walk::Bundles { &self.hits[..] } else { &self.nearest[k..] };
+                shade::shade::<N>(inp, self.facts, &mut self.paths, k, n, hits, &mut self.more, &mut self.shadow);
                 t = Self::lap(t, &mut times.shade);
                 k += n;
             }
+            if measuring {
+                self.facts.record_walk(RAYS, walk, spent, live);
+            }
+            camera = false;
             // Shadow rays: each unblocked one adds its light to its path.
+            let walk = self.choice.walk(SHADOWS, batch);
+            let start = (!self.choice.decided(SHADOWS)).then(Instant::now);
             for chunk in self.shadow.chunks(N) {
-                for (l, (_, s)) in chunk.iter().enumerate() {
-                    for a in 0..3 {
-                        rays.o[a][l] = s.ray.origin[a];
-                        rays.d[a][l] = s.ray.dir[a];
+                let blocked = match walk {
+                    Walk::Bundles => {
+                        for (l, (_, s)) in chunk.iter().enumerate() {
+                            for a in 0..3 {
+                                rays.o[a][l] = s.ray.origin[a];
+                                rays.d[a][l] = s.ray.dir[a];
+                            }
+                            tmax[l] = s.dist;
+                        }
+                        bundle::occluded_lanes(self.isa, inp.wide, inp.prims, &rays, &tmax, chunk.len())
                     }
-                    tmax[l] = s.dist;
-                }
-                let blocked = bundle::occluded_lanes(self.isa, inp.wide, inp.prims, &rays, &tmax, chunk.len());
+                    Walk::OneRay => chunk.iter().enumerate().fold(0, |m, (l, (_, s))| {
+                        m | (wide_traverse::occluded(inp.wide, inp.prims, &s.ray, 0.0, s.dist) as u32) << l
+                    }),
+                };
                 for (l, (i, s)) in chunk.iter().enumerate() {
                     if blocked >> l & 1 == 0 {
                         self.paths.add_to_sum(*i as usize, s.value);
                     }
                 }
+            }
+            if let Some(start) = start {
+                self.facts.record_walk(SHADOWS, walk, start.elapsed(), self.shadow.len());
             }
             t = Self::lap(t, &mut times.shadow);
             // The paths that ended leave their radiance; the last live paths move into their

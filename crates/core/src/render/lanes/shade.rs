@@ -35,6 +35,8 @@ pub struct Facts {
     pub materials: Vec<Option<Material>>,
     /// Area lights are sampled in lanes ([`lights::in_lanes`]).
     pub lights_in_lanes: bool,
+    /// The render's choice of walks, measured by its first batches.
+    choice: std::sync::Mutex<super::Choice>,
 }
 
 /// What the lanes read of a material, side by side.
@@ -61,7 +63,9 @@ pub enum Kind {
 }
 
 impl Facts {
-    pub fn new(g: &FlatScene, num_lights: u32) -> Self {
+    /// The facts of `g` with `num_lights` lights; `walk`: the walk every ray after the camera's
+    /// takes (None: the faster, measured).
+    pub fn new(g: &FlatScene, num_lights: u32, walk: Option<super::Walk>) -> Self {
         let delta = g.lights[..num_lights as usize].iter().any(|l| l.flags & LIGHT_STAND_IN == 0);
         let materials = g
             .materials
@@ -89,7 +93,25 @@ impl Facts {
                 })
             })
             .collect();
-        Self { lanes_ok: g.environment.is_empty() && !delta, materials, lights_in_lanes: lights::in_lanes(g) }
+        Self {
+            lanes_ok: g.environment.is_empty() && !delta,
+            materials,
+            lights_in_lanes: lights::in_lanes(g),
+            choice: std::sync::Mutex::new(super::Choice::forced(walk)),
+        }
+    }
+
+    /// The render's choice of walks so far.
+    pub(super) fn walks(&self) -> super::Choice {
+        *self.choice.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Adds a measurement of `walk` for rays of `kind` to the render's choice.
+    pub(super) fn record_walk(&self, kind: usize, walk: super::Walk, spent: std::time::Duration, rays: usize) {
+        let mut c = self.choice.lock().unwrap_or_else(|e| e.into_inner());
+        if !c.decided(kind) {
+            c.record(kind, walk, spent, rays);
+        }
     }
 }
 
