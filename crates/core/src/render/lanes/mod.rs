@@ -101,7 +101,7 @@ impl Choice {
 
     /// The walk for rays of `kind` in batch `batch`.
     pub(super) fn walk(&self, kind: usize, batch: u32) -> Walk {
-        self.decided[kind].unwrap_or(if batch % 2 == 0 { Walk::Bundles } else { Walk::OneRay })
+        self.decided[kind].unwrap_or(if batch.is_multiple_of(2) { Walk::Bundles } else { Walk::OneRay })
     }
 
     pub(super) fn record(&mut self, kind: usize, walk: Walk, spent: Duration, rays: usize) {
