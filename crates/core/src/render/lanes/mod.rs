@@ -350,8 +350,21 @@ impl<'f> Tracer<'f> {
                     spent += start.map_or(Duration::ZERO, |s| s.elapsed());
                     t = Self::lap(t, &mut times.trace);
                 }
-                let hits = if walk == Walk::Bundles { &self.hits[..] } else { &self.nearest[k..] };
-                shade::shade::<N>(inp, self.facts, &mut self.paths, k, n, hits, &mut self.more, &mut self.shadow);
+                let (hits, records) = match walk {
+                    Walk::Bundles => (&self.hits[..], None),
+                    Walk::OneRay => (&self.nearest[k..], Some(&self.one_hits[k..])),
+                };
+                shade::shade::<N>(
+                    inp,
+                    self.facts,
+                    &mut self.paths,
+                    k,
+                    n,
+                    hits,
+                    records,
+                    &mut self.more,
+                    &mut self.shadow,
+                );
                 t = Self::lap(t, &mut times.shade);
                 k += n;
             }

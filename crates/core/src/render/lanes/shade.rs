@@ -15,7 +15,7 @@ use super::lights;
 use super::paths::Paths;
 use crate::layout::{ATTR_COLORS, ATTR_NORMALS, FlatScene, LIGHT_STAND_IN, MATERIAL_ALPHA, MATERIAL_TWO_SIDED};
 use crate::math::{Ray, V3};
-use crate::primitives::{Nearest, PrimKind};
+use crate::primitives::{Hit, Nearest, PrimKind};
 use crate::render::bsdf::MIN_ROUGHNESS;
 use crate::render::path::{self, NeeRay, SHADOW_REACH};
 use crate::render::sampler::{PCG_INC, PCG_MULT};
@@ -115,7 +115,8 @@ impl Facts {
     }
 }
 
-/// Shades the vertices of paths `k .. k + n` (n ≤ N) where their rays met `hits[..n]`, as
+/// Shades the vertices of paths `k .. k + n` (n ≤ N) where their rays met `hits[..n]` (with
+/// their records where the walk made them, else made here), as
 /// [`path::shade_vertex`] does: updates the paths, sets `more[k + l]` for each that goes on,
 /// and pushes each area-light shadow ray with its path's index onto `nee`.
 #[inline(always)]
@@ -127,6 +128,7 @@ pub(super) fn shade<const N: usize>(
     k: usize,
     n_lanes: usize,
     hits: &[Nearest<f32>],
+    records: Option<&[Option<Hit<f32>>]>,
     more: &mut [bool],
     nee: &mut Vec<(u32, NeeRay)>,
 ) {
@@ -170,7 +172,10 @@ pub(super) fn shade<const N: usize>(
         match lane_kind {
             None => {
                 let (mut st, mut rng) = p.get(i);
-                let hit = b.found.then(|| prims.hit(prim, &st.ray, b.t, b.part));
+                let hit = match records {
+                    Some(r) => r[l],
+                    None => b.found.then(|| prims.hit(prim, &st.ray, b.t, b.part)),
+                };
                 let mut ne = None;
                 more[i] = path::shade_vertex(inp, &mut st, hit.as_ref(), &mut rng, &mut ne);
                 p.set(i, &st, &rng);
@@ -183,19 +188,24 @@ pub(super) fn shade<const N: usize>(
                 on[l] = true;
                 is_hit[l] = true;
                 t[l] = b.t;
-                match prim.kind() {
-                    PrimKind::Sphere => {
+                match (records.and_then(|r| r[l]), prim.kind()) {
+                    // The walk's own record (its triangle copy gave the normal).
+                    (Some(h), _) => {
+                        (nrm[0][l], nrm[1][l], nrm[2][l]) = (h.normal.x, h.normal.y, h.normal.z);
+                        given[l] = true;
+                    }
+                    (None, PrimKind::Sphere) => {
                         let c = prims.spheres[prim.index()].shape.center;
                         (geo[0][l], geo[1][l], geo[2][l]) = (c.x, c.y, c.z);
                         sphere[l] = true;
                     }
-                    PrimKind::Triangle => {
+                    (None, PrimKind::Triangle) => {
                         let v = &prims.triangles[prim.index()].shape.v;
                         for (j, c) in [v[0], v[1], v[2]].iter().flat_map(|v| v.to_array()).enumerate() {
                             geo[j][l] = c;
                         }
                     }
-                    _ => {
+                    (None, _) => {
                         let h = prims.hit(prim, &p.ray(i), b.t, b.part);
                         (nrm[0][l], nrm[1][l], nrm[2][l]) = (h.normal.x, h.normal.y, h.normal.z);
                         given[l] = true;
