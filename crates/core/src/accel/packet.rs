@@ -247,13 +247,13 @@ impl<'a> Walk<'a, '_> {
                     let rows = (node as *const WideNode).cast::<u8>();
                     let cull_v = _mm256_loadu_ps(cull.as_ptr());
                     let live = lanes_of(mask);
-                    let mut keys = [0u64; WIDTH];
-                    let mut entered = [MaybeUninit::<(__m256, u32, u32)>::uninit(); WIDTH];
-                    let mut count = 0;
-                    for (j, &child) in node.child.iter().enumerate() {
-                        if child == EMPTY_CHILD {
-                            continue;
-                        }
+                    // Every child is tested, without a branch on its outcome (which lanes
+                    // enter which child is hard to predict); empty children have inverted
+                    // boxes that no lane enters. Then the entered ones, in child order.
+                    let mut tns = [_mm256_setzero_ps(); WIDTH];
+                    let mut masks = [0u32; WIDTH];
+                    let mut any = 0u32;
+                    for j in 0..WIDTH {
                         let plane = |off: usize| _mm256_broadcast_ss(&*rows.add(off).cast::<f32>().add(j));
                         let slab =
                             |off: usize, o: __m256, inv: __m256| _mm256_mul_ps(_mm256_sub_ps(plane(off), o), inv);
@@ -272,15 +272,30 @@ impl<'a> Walk<'a, '_> {
                         let tn = _mm256_castsi256_ps(tn);
                         let hit = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tn, _mm256_castsi256_ps(tf)), live);
                         let m = _mm256_movemask_ps(hit) as u32;
-                        if m != 0 {
-                            // Ordered by the entry distance of the first lane entering (as
-                            // good as the nearest one for coherent rays, and cheaper).
-                            let first = _mm256_set1_epi32(m.trailing_zeros() as i32);
-                            let near = _mm256_cvtss_f32(_mm256_permutevar8x32_ps(tn, first));
-                            keys[count] = (near.to_bits() as u64) << 32 | count as u64;
-                            entered[count] = MaybeUninit::new((tn, child, m));
-                            count += 1;
-                        }
+                        tns[j] = tn;
+                        masks[j] = m;
+                        any |= ((m != 0) as u32) << j;
+                    }
+                    // Only children that exist, whatever their boxes hold.
+                    let empty = _mm256_cmpeq_epi32(
+                        _mm256_loadu_si256(node.child.as_ptr().cast()),
+                        _mm256_set1_epi32(EMPTY_CHILD as i32),
+                    );
+                    any &= !(_mm256_movemask_ps(_mm256_castsi256_ps(empty)) as u32);
+                    let mut keys = [0u64; WIDTH];
+                    let mut entered = [(0u32, 0u32); WIDTH];
+                    let mut count = 0;
+                    while any != 0 {
+                        let j = any.trailing_zeros() as usize;
+                        any &= any - 1;
+                        let m = masks[j];
+                        // Ordered by the entry distance of the first lane entering (as good
+                        // as the nearest one for coherent rays, and cheaper).
+                        let first = _mm256_set1_epi32(m.trailing_zeros() as i32);
+                        let near = _mm256_cvtss_f32(_mm256_permutevar8x32_ps(tns[j], first));
+                        keys[count] = (near.to_bits() as u64) << 32 | count as u64;
+                        entered[count] = (j as u32, m);
+                        count += 1;
                     }
                     if count > 0 {
                         // Farthest first onto the stack; the nearest is visited next.
@@ -289,14 +304,14 @@ impl<'a> Walk<'a, '_> {
                             keys.sort_unstable_by(|a, b| b.cmp(a));
                         }
                         for &k in &keys[..count - 1] {
-                            let (tn, child, m) = entered[(k & 0xff) as usize].assume_init();
-                            let mut e = Entry { tn: [0.0; PACKET], word: child, mask: m };
-                            _mm256_storeu_ps(e.tn.as_mut_ptr(), tn);
+                            let (j, m) = entered[(k & 0xff) as usize];
+                            let mut e = Entry { tn: [0.0; PACKET], word: node.child[j as usize], mask: m };
+                            _mm256_storeu_ps(e.tn.as_mut_ptr(), tns[j as usize]);
                             stack[len] = MaybeUninit::new(e);
                             len += 1;
                         }
-                        let (_, child, m) = entered[(keys[count - 1] & 0xff) as usize].assume_init();
-                        (word, mask) = (child, m);
+                        let (j, m) = entered[(keys[count - 1] & 0xff) as usize];
+                        (word, mask) = (node.child[j as usize], m);
                         continue;
                     }
                 } else {
