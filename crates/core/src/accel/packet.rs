@@ -288,6 +288,8 @@ impl<'a> Walk<'a, '_> {
                     while any != 0 {
                         let j = any.trailing_zeros() as usize;
                         any &= any - 1;
+                        // Asked for now: the nearest is visited next, the others after it.
+                        self.w.prefetch_word(node.child[j]);
                         let m = masks[j];
                         // Ordered by the entry distance of the first lane entering (as good
                         // as the nearest one for coherent rays, and cheaper).
