@@ -248,8 +248,8 @@ impl<'a> Walk<'a, '_> {
                     let cull_v = _mm256_loadu_ps(cull.as_ptr());
                     let live = lanes_of(mask);
                     // Every child is tested, without a branch on its outcome (which lanes
-                    // enter which child is hard to predict); empty children have inverted
-                    // boxes that no lane enters. Then the entered ones, in child order.
+                    // enter which child is hard to predict); then the entered ones, in child
+                    // order.
                     let mut tns = [_mm256_setzero_ps(); WIDTH];
                     let mut masks = [0u32; WIDTH];
                     let mut any = 0u32;
@@ -283,20 +283,19 @@ impl<'a> Walk<'a, '_> {
                     );
                     any &= !(_mm256_movemask_ps(_mm256_castsi256_ps(empty)) as u32);
                     let mut keys = [0u64; WIDTH];
-                    let mut entered = [(0u32, 0u32); WIDTH];
+                    let mut entered = [0usize; WIDTH];
                     let mut count = 0;
                     while any != 0 {
                         let j = any.trailing_zeros() as usize;
                         any &= any - 1;
                         // Asked for now: the nearest is visited next, the others after it.
                         self.w.prefetch_word(node.child[j]);
-                        let m = masks[j];
                         // Ordered by the entry distance of the first lane entering (as good
                         // as the nearest one for coherent rays, and cheaper).
-                        let first = _mm256_set1_epi32(m.trailing_zeros() as i32);
+                        let first = _mm256_set1_epi32(masks[j].trailing_zeros() as i32);
                         let near = _mm256_cvtss_f32(_mm256_permutevar8x32_ps(tns[j], first));
                         keys[count] = (near.to_bits() as u64) << 32 | count as u64;
-                        entered[count] = (j as u32, m);
+                        entered[count] = j;
                         count += 1;
                     }
                     if count > 0 {
@@ -306,14 +305,14 @@ impl<'a> Walk<'a, '_> {
                             keys.sort_unstable_by(|a, b| b.cmp(a));
                         }
                         for &k in &keys[..count - 1] {
-                            let (j, m) = entered[(k & 0xff) as usize];
-                            let mut e = Entry { tn: [0.0; PACKET], word: node.child[j as usize], mask: m };
-                            _mm256_storeu_ps(e.tn.as_mut_ptr(), tns[j as usize]);
+                            let j = entered[(k & 0xff) as usize];
+                            let mut e = Entry { tn: [0.0; PACKET], word: node.child[j], mask: masks[j] };
+                            _mm256_storeu_ps(e.tn.as_mut_ptr(), tns[j]);
                             stack[len] = MaybeUninit::new(e);
                             len += 1;
                         }
-                        let (j, m) = entered[(keys[count - 1] & 0xff) as usize];
-                        (word, mask) = (node.child[j as usize], m);
+                        let j = entered[(keys[count - 1] & 0xff) as usize];
+                        (word, mask) = (node.child[j], masks[j]);
                         continue;
                     }
                 } else {
