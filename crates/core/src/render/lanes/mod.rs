@@ -74,8 +74,10 @@ pub(super) const RAYS: usize = 0;
 pub(super) const SHADOWS: usize = 1;
 
 /// Which walk serves each kind of ray faster here, measured once per render (shared by its
-/// threads through [`Facts`]): the first batches alternate the two walks and time them, until each has walked [`Choice::ENOUGH`] rays; the faster per ray
-/// is kept. Bundles pay where rays of different directions still meet the same nodes and
+/// threads through [`Facts`]): the first batches alternate the two walks and time them, until
+/// each has walked [`Choice::ENOUGH`] rays; the faster per ray is kept. The rays after the
+/// camera's are timed with their shading, which makes the hit records the one-ray walk hands
+/// over; the shadow rays with adding their light. Bundles pay where rays of different directions still meet the same nodes and
 /// quadrics (the seed scene); where they part in a large mesh, each ray alone, with several
 /// in flight hiding the memory latency, is faster. Both walks find the same hits, so the
 /// choice changes the time only, never the image.
@@ -312,10 +314,10 @@ impl<'f> Tracer<'f> {
             // Camera rays walk as bundles; later rays as the choice says.
             self.sync_choice();
             let walk = if camera { Walk::Bundles } else { self.choice.walk(RAYS, batch) };
-            let measuring = !camera && !self.choice.decided(RAYS);
-            let mut spent = Duration::ZERO;
+            // Measured: the walk and the shading of the round, which takes the one-ray walk's
+            // hit records and makes them itself after bundles.
+            let measuring = (!camera && !self.choice.decided(RAYS)).then(Instant::now);
             if walk == Walk::OneRay {
-                let start = Instant::now();
                 self.one_rays.clear();
                 self.one_rays.extend((0..live).map(|i| self.paths.ray(i)));
                 self.one_hits.clear();
@@ -333,21 +335,18 @@ impl<'f> Tracer<'f> {
                     Some(h) => Nearest { t: h.t, prim_ref: h.prim_ref, part: h.part, found: true },
                     None => Nearest::new(f32::INFINITY),
                 }));
-                spent = start.elapsed();
                 t = Self::lap(t, &mut times.trace);
             }
             let mut k = 0;
             while k < live {
                 let n = N.min(live - k);
                 if walk == Walk::Bundles {
-                    let start = measuring.then(Instant::now);
                     // The lanes past n hold other paths' rays (the arrays are padded): not read.
                     for a in 0..3 {
                         rays.o[a][..N].copy_from_slice(&self.paths.o[a][k..k + N]);
                         rays.d[a][..N].copy_from_slice(&self.paths.d[a][k..k + N]);
                     }
                     bundle::nearest_lanes(self.isa, inp.wide, inp.prims, &rays, n, &mut self.hits);
-                    spent += start.map_or(Duration::ZERO, |s| s.elapsed());
                     t = Self::lap(t, &mut times.trace);
                 }
                 let (hits, records) = match walk {
@@ -368,8 +367,8 @@ impl<'f> Tracer<'f> {
                 t = Self::lap(t, &mut times.shade);
                 k += n;
             }
-            if measuring {
-                self.facts.record_walk(RAYS, walk, spent, live);
+            if let Some(start) = measuring {
+                self.facts.record_walk(RAYS, walk, start.elapsed(), live);
             }
             camera = false;
             // Shadow rays: each unblocked one adds its light to its path.
