@@ -27,11 +27,13 @@ pub enum PathTracer {
 }
 
 impl PathTracer {
-    /// The walk forced on the rays after the camera's, if any.
-    fn walk(self) -> Option<lanes::Walk> {
+    /// The lane tracer's lanes and the walk forced on the rays after the camera's, if any;
+    /// `None` for one path at a time.
+    fn lanes(self) -> Option<(Isa, Option<lanes::Walk>)> {
         match self {
-            PathTracer::LanesWalking(_, w) => Some(w),
-            _ => None,
+            PathTracer::Lanes(isa) => Some((isa, None)),
+            PathTracer::LanesWalking(isa, w) => Some((isa, Some(w))),
+            PathTracer::OneByOne => None,
         }
     }
 }
@@ -113,10 +115,10 @@ fn render_region_timed(
     }
     let done = AtomicU64::new(0);
     let rows = img.pixels.par_chunks_mut(region.width() as usize).enumerate();
-    match (mode, tracer) {
-        (RenderMode::Path, PathTracer::Lanes(isa) | PathTracer::LanesWalking(isa, _)) => {
+    match (mode, tracer.lanes()) {
+        (RenderMode::Path, Some((isa, walk))) => {
             let samples = frame.sample_base..frame.sample_base + frame.spp;
-            let facts = lanes::Facts::new(&prep.gpu, frame.num_lights, tracer.walk());
+            let facts = lanes::Facts::new(&prep.gpu, frame.num_lights, walk);
             // Each worker's tracer, its time added to `times` when the worker is done.
             struct Worker<'f, 't> {
                 tracer: lanes::Tracer<'f>,
@@ -191,9 +193,9 @@ impl PathAccumulator {
         let inputs = ShadeInputs { prims: &prep.prims, wide: &prep.wide, gpu: &prep.gpu, frame: &frame };
         let first = self.samples;
         let rows = self.sums.par_chunks_mut(frame.width as usize).enumerate();
-        match self.tracer {
-            PathTracer::Lanes(isa) | PathTracer::LanesWalking(isa, _) => {
-                let facts = lanes::Facts::new(&prep.gpu, frame.num_lights, self.tracer.walk());
+        match self.tracer.lanes() {
+            Some((isa, walk)) => {
+                let facts = lanes::Facts::new(&prep.gpu, frame.num_lights, walk);
                 rows.for_each_init(
                     || lanes::Tracer::new(isa, &facts, false),
                     |tracer, (y, row)| {
@@ -205,7 +207,7 @@ impl PathAccumulator {
                     },
                 );
             }
-            PathTracer::OneByOne => rows.for_each(|(y, row)| {
+            None => rows.for_each(|(y, row)| {
                 for (x, px) in row.iter_mut().enumerate() {
                     for s in first..first + n {
                         let c = path::sample_pixel(&inputs, x as u32, y as u32, s);

@@ -77,10 +77,10 @@ pub(super) const SHADOWS: usize = 1;
 /// threads through [`Facts`]): the first batches alternate the two walks and time them, until
 /// each has walked [`Choice::ENOUGH`] rays; the faster per ray is kept. The rays after the
 /// camera's are timed with their shading, which makes the hit records the one-ray walk hands
-/// over; the shadow rays with adding their light. Bundles pay where rays of different directions still meet the same nodes and
-/// quadrics (the seed scene); where they part in a large mesh, each ray alone, with several
-/// in flight hiding the memory latency, is faster. Both walks find the same hits, so the
-/// choice changes the time only, never the image.
+/// over; the shadow rays with adding their light. Bundles pay where rays of different
+/// directions still meet the same nodes and quadrics (the seed scene); where they part in a
+/// large mesh, each ray alone, with several in flight hiding the memory latency, is faster.
+/// Both walks find the same hits, so the choice changes the time only, never the image.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Choice {
     /// Per kind and walk: time and rays measured.
