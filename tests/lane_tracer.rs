@@ -93,3 +93,151 @@ fn progressive_accumulations_are_equal() {
         assert!(run(PathTracer::Lanes(isa)) == want, "{isa:?} lanes accumulate another image");
     }
 }
+
+/// A PNG of `w` × `h` texels from `f(x, y)` (8-bit RGB).
+fn png(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
+    let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb(f(x, y)));
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png).unwrap();
+    out.into_inner()
+}
+
+/// A glTF scene in `dir` under the golden environment map: a sphere of a metallic-roughness
+/// material with a colour and a metallic-roughness texture, on a ground of a rough dielectric
+/// one whose texture mirrors and clamps, both with vertex normals (what the lanes shade), and
+/// a small sphere whose texture is read nearest and which has a normal map (what they leave to
+/// the one-path code). Returns the scene file.
+fn pbr_scene(dir: &Path) -> PathBuf {
+    use base64::Engine;
+    let (mut pos, mut nrm, mut uv, mut prims) = (vec![], vec![], vec![], vec![]);
+    // UV spheres: 24 × 12 quads of two triangles.
+    let sphere = |c: [f32; 3], r: f32, pos: &mut Vec<f32>, nrm: &mut Vec<f32>, uv: &mut Vec<f32>| {
+        let base = pos.len() as u32 / 3;
+        let (nu, nv) = (24u32, 12u32);
+        for j in 0..=nv {
+            for i in 0..=nu {
+                let (a, b) =
+                    (2.0 * std::f32::consts::PI * i as f32 / nu as f32, std::f32::consts::PI * j as f32 / nv as f32);
+                let n = [b.sin() * a.cos(), b.cos(), b.sin() * a.sin()];
+                pos.extend((0..3).map(|k| c[k] + r * n[k]));
+                nrm.extend(n);
+                uv.extend([2.0 * i as f32 / nu as f32, j as f32 / nv as f32]);
+            }
+        }
+        let mut idx = vec![];
+        for j in 0..nv {
+            for i in 0..nu {
+                let a = base + j * (nu + 1) + i;
+                let (b, c, d) = (a + 1, a + nu + 1, a + nu + 2);
+                idx.extend([a, b, c, b, d, c]);
+            }
+        }
+        idx
+    };
+    prims.push(sphere([0.0, 0.6, 0.0], 0.6, &mut pos, &mut nrm, &mut uv));
+    prims.push(sphere([0.9, 0.25, -0.6], 0.25, &mut pos, &mut nrm, &mut uv));
+    let base = pos.len() as u32 / 3;
+    pos.extend([-3.0, 0.0, -3.0, 3.0, 0.0, -3.0, 3.0, 0.0, 3.0, -3.0, 0.0, 3.0]);
+    nrm.extend([0.0, 1.0, 0.0].repeat(4));
+    uv.extend([-1.5, -1.5, 2.5, -1.5, 2.5, 2.5, -1.5, 2.5]);
+    prims.push(vec![base, base + 2, base + 1, base, base + 3, base + 2]);
+    let mut bin: Vec<u8> = vec![];
+    let (mut views, mut accessors) = (vec![], vec![]);
+    let mut add = |bytes: Vec<u8>, count: usize, ty: &str, component: u32, extra: String| {
+        views.push(format!(r#"{{"buffer": 0, "byteOffset": {}, "byteLength": {}}}"#, bin.len(), bytes.len()));
+        accessors.push(format!(
+            r#"{{"bufferView": {}, "componentType": {component}, "count": {count}, "type": "{ty}"{extra}}}"#,
+            views.len() - 1
+        ));
+        bin.extend(bytes);
+    };
+    let bytes = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let n = pos.len() / 3;
+    let lo: Vec<f32> = (0..3).map(|k| pos.iter().skip(k).step_by(3).copied().fold(f32::INFINITY, f32::min)).collect();
+    let hi: Vec<f32> =
+        (0..3).map(|k| pos.iter().skip(k).step_by(3).copied().fold(f32::NEG_INFINITY, f32::max)).collect();
+    add(bytes(&pos), n, "VEC3", 5126, format!(r#", "min": {lo:?}, "max": {hi:?}"#));
+    add(bytes(&nrm), n, "VEC3", 5126, String::new());
+    add(bytes(&uv), n, "VEC2", 5126, String::new());
+    for p in &prims {
+        add(p.iter().flat_map(|i| i.to_le_bytes()).collect(), p.len(), "SCALAR", 5125, String::new());
+    }
+    let primitive = |k: usize| {
+        format!(
+            r#"{{"attributes": {{"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}}, "indices": {}, "material": {k}}}"#,
+            3 + k
+        )
+    };
+    let images = [
+        png(16, 16, |x, y| if (x / 4 + y / 4) % 2 == 0 { [220, 180, 40] } else { [40, 90, 200] }),
+        png(8, 8, |x, y| [0, (40 + x * 25) as u8, (y * 36) as u8]),
+        png(4, 4, |x, y| [(x * 60) as u8, 200, (y * 60) as u8]),
+        png(4, 4, |x, y| [(100 + x * 20) as u8, (150 - y * 20) as u8, 230]),
+    ];
+    let b64 = |b: &[u8]| base64::engine::general_purpose::STANDARD.encode(b);
+    let json = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+  "meshes": [{{"primitives": [{}, {}, {}]}}],
+  "materials": [
+    {{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0}}, "metallicFactor": 0.8, "roughnessFactor": 0.7, "metallicRoughnessTexture": {{"index": 1}}}}}},
+    {{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 2}}, "roughnessFactor": 0.4}}, "normalTexture": {{"index": 3}}}},
+    {{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 4}}, "baseColorFactor": [0.8, 0.8, 0.8, 1], "metallicFactor": 0.0, "roughnessFactor": 0.9}}}}
+  ],
+  "textures": [{{"source": 0, "sampler": 0}}, {{"source": 1, "sampler": 0}}, {{"source": 2, "sampler": 1}}, {{"source": 3, "sampler": 0}}, {{"source": 0, "sampler": 2}}],
+  "samplers": [{{"wrapS": 10497, "wrapT": 10497}}, {{"magFilter": 9728}}, {{"wrapS": 33648, "wrapT": 33071}}],
+  "images": [{}],
+  "buffers": [{{"uri": "data:application/octet-stream;base64,{}", "byteLength": {}}}],
+  "bufferViews": [{}], "accessors": [{}]}}"#,
+        primitive(0),
+        primitive(1),
+        primitive(2),
+        images
+            .iter()
+            .map(|i| format!(r#"{{"uri": "data:image/png;base64,{}"}}"#, b64(i)))
+            .collect::<Vec<_>>()
+            .join(", "),
+        b64(&bin),
+        bin.len(),
+        views.join(", "),
+        accessors.join(", "),
+    );
+    std::fs::write(dir.join("pbr.gltf"), json).unwrap();
+    std::fs::copy(root().join("tests/golden/sky.exr"), dir.join("sky.exr")).unwrap();
+    let toml = r#"
+[camera]
+eye = [0.3, 1.6, -3.0]
+look_at = [0.0, 0.4, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 45.0
+[image]
+width = 40
+height = 30
+[render]
+mode = "path"
+max_depth = 6
+[environment]
+file = "sky.exr"
+rotation = 40.0
+[[objects]]
+type = "gltf"
+file = "pbr.gltf"
+"#;
+    std::fs::write(dir.join("pbr.toml"), toml).unwrap();
+    dir.join("pbr.toml")
+}
+
+/// glTF's metallic-roughness material with colour and metallic-roughness textures and vertex
+/// normals, under an environment map: the lanes shade it (and leave the nearest-filtered,
+/// normal-mapped material to the one-path code), and the image is the one-path tracer's.
+#[test]
+fn lanes_equal_the_one_by_one_tracer_on_a_textured_gltf_under_a_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let prep = prepared(&pbr_scene(dir.path()));
+    let frame = prep.frame(40, 30);
+    let facts = strahl_core::render::lanes::Facts::new(&prep.gpu, frame.num_lights, None);
+    let lanes: Vec<bool> = facts.materials.iter().map(Option::is_some).collect();
+    // (After the file's three, the scene's default material.)
+    assert_eq!(lanes[..3], [true, false, true], "which materials the lanes shade");
+    assert!(facts.lanes_ok && !prep.gpu.environment.is_empty() && !prep.gpu.triangle_attrs.is_empty());
+    check("pbr.toml", &prep, 40, 30, 6, 3);
+}

@@ -17,7 +17,9 @@ mod camera;
 mod lane;
 mod lights;
 mod paths;
+mod pbr;
 mod shade;
+mod surface;
 
 use super::path::NeeRay;
 use super::shade::ShadeInputs;

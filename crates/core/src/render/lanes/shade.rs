@@ -13,7 +13,12 @@
 use super::lane::{F, M, U, V};
 use super::lights;
 use super::paths::Paths;
-use crate::layout::{ATTR_COLORS, ATTR_NORMALS, FlatScene, LIGHT_STAND_IN, MATERIAL_ALPHA, MATERIAL_TWO_SIDED};
+use super::pbr::{self, basis};
+use super::surface as lane_surface;
+use crate::layout::{
+    ATTR_COLORS, ATTR_NORMALS, FlatScene, LIGHT_STAND_IN, MATERIAL_ALPHA, MATERIAL_TWO_SIDED, MATERIAL_UNLIT,
+    TEXTURE_NEAREST,
+};
 use crate::math::{Ray, V3};
 use crate::primitives::{Hit, Nearest, PrimKind};
 use crate::render::bsdf::MIN_ROUGHNESS;
@@ -21,17 +26,18 @@ use crate::render::path::{self, NeeRay, SHADOW_REACH};
 use crate::render::sampler::{PCG_INC, PCG_MULT};
 use crate::render::shade::ShadeInputs;
 use crate::render::spawn::MIN_ULP;
-use crate::render::surface;
+use crate::render::{environment, surface};
 use crate::scene::MaterialKind;
 
 const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
 
 /// What the lanes' shading may take for granted in a scene, found once per render.
 pub struct Facts {
-    /// The scene has no environment light and no point or directional light.
+    /// The scene has no point or directional light.
     pub lanes_ok: bool,
-    /// Per material: what the lanes read of it, where they shade it (kind [`Kind`], no
-    /// texture, no alpha).
+    /// Per material: what the lanes read of it, where they shade it (kind [`Kind`]; colour
+    /// and metallic-roughness textures without nearest filtering, on diffuse and pbr
+    /// materials only; no emission or normal texture, no alpha, not unlit).
     pub materials: Vec<Option<Material>>,
     /// Area lights are sampled in lanes ([`lights::in_lanes`]).
     pub lights_in_lanes: bool,
@@ -51,6 +57,12 @@ pub struct Material {
     pub color: [f32; 3],
     pub radiance: [f32; 3],
     pub ior: f32,
+    pub metallic: f32,
+    pub roughness: f32,
+    /// 1 + the colour texture's index (0: none).
+    pub color_texture: u32,
+    /// 1 + the metallic-roughness texture's index (0: none; pbr only).
+    pub metal_rough_texture: u32,
 }
 
 /// The materials the lanes shade.
@@ -60,6 +72,8 @@ pub enum Kind {
     Lambert = 0,
     Mirror = 1,
     Glass = 2,
+    /// glTF's metallic-roughness material ([`pbr`]).
+    Pbr = 3,
 }
 
 impl Facts {
@@ -71,30 +85,37 @@ impl Facts {
             .materials
             .iter()
             .map(|m| {
-                let untextured = m.color_texture == 0
-                    && m.radiance_texture == 0
+                let bilinear = |t: u32| t == 0 || g.textures[t as usize - 1].flags & TEXTURE_NEAREST == 0;
+                let plain = m.radiance_texture == 0
                     && m.normal_texture == 0
-                    && m.metal_rough_texture == 0
-                    && m.flags & MATERIAL_ALPHA == 0;
+                    && m.flags & (MATERIAL_ALPHA | MATERIAL_UNLIT) == 0
+                    && bilinear(m.color_texture)
+                    && bilinear(m.metal_rough_texture);
+                let untextured = m.color_texture == 0 && m.metal_rough_texture == 0;
                 let kind = match m.kind() {
                     MaterialKind::Diffuse | MaterialKind::Emissive => Some(Kind::Lambert),
-                    MaterialKind::Mirror if m.roughness < MIN_ROUGHNESS => Some(Kind::Mirror),
-                    MaterialKind::Dielectric => Some(Kind::Glass),
+                    MaterialKind::Mirror if m.roughness < MIN_ROUGHNESS && untextured => Some(Kind::Mirror),
+                    MaterialKind::Dielectric if untextured => Some(Kind::Glass),
+                    MaterialKind::Pbr => Some(Kind::Pbr),
                     _ => None,
                 };
-                kind.filter(|_| untextured).map(|kind| Material {
+                kind.filter(|_| plain).map(|kind| Material {
                     kind,
                     flags: m.flags,
-                    emits: m.kind() == MaterialKind::Emissive,
+                    emits: matches!(m.kind(), MaterialKind::Emissive | MaterialKind::Pbr),
                     light: m.is_light(),
                     color: m.color,
                     radiance: m.radiance,
                     ior: m.ior,
+                    metallic: m.metallic,
+                    roughness: m.roughness,
+                    color_texture: m.color_texture,
+                    metal_rough_texture: if kind == Kind::Pbr { m.metal_rough_texture } else { 0 },
                 })
             })
             .collect();
         Self {
-            lanes_ok: g.environment.is_empty() && !delta,
+            lanes_ok: !delta,
             materials,
             lights_in_lanes: lights::in_lanes(g),
             choice: std::sync::Mutex::new(super::Choice::forced(walk)),
@@ -154,6 +175,14 @@ pub(super) fn shade<const N: usize>(
     let mut geo = [[0.0f32; N]; 9];
     let mut sphere = [false; N];
     let mut given = [false; N];
+    // Triangles with attributes whose textures or vertex normals the lanes read: the
+    // triangle, its corners (for the barycentric weights), the textures, the pbr factors.
+    let mut surf = [false; N];
+    let mut smooth = [false; N];
+    let mut tri = [0u32; N];
+    let mut corners = [[0.0f32; N]; 9];
+    let (mut color_tex, mut mr_tex) = ([0u32; N], [0u32; N]);
+    let (mut metallic, mut roughness) = ([0.0f32; N], [0.0f32; N]);
     for l in 0..n_lanes {
         let i = k + l;
         let b = &hits[l];
@@ -166,7 +195,7 @@ pub(super) fn shade<const N: usize>(
         } else {
             let plain = prim.kind() != PrimKind::Triangle
                 || g.triangle_attrs.is_empty()
-                || g.triangle_attrs[prim.index()].flags & (ATTR_NORMALS | ATTR_COLORS) == 0;
+                || g.triangle_attrs[prim.index()].flags & ATTR_COLORS == 0;
             facts.materials[mi].filter(|_| plain).map(Some)
         };
         match lane_kind {
@@ -221,6 +250,20 @@ pub(super) fn shade<const N: usize>(
                 }
                 ior[l] = m.ior;
                 material[l] = mi as u32;
+                (metallic[l], roughness[l]) = (m.metallic, m.roughness);
+                if prim.kind() == PrimKind::Triangle && !g.triangle_attrs.is_empty() {
+                    let i = prim.index();
+                    smooth[l] = g.triangle_attrs[i].flags & ATTR_NORMALS != 0;
+                    surf[l] = smooth[l] || m.color_texture != 0 || m.metal_rough_texture != 0;
+                    if surf[l] {
+                        tri[l] = i as u32;
+                        let gt = &g.triangles[i];
+                        for (j, c) in gt.va.iter().chain(&gt.vb).chain(&gt.vc).enumerate() {
+                            corners[j][l] = *c;
+                        }
+                        (color_tex[l], mr_tex[l]) = (m.color_texture, m.metal_rough_texture);
+                    }
+                }
             }
         }
     }
@@ -232,6 +275,8 @@ pub(super) fn shade<const N: usize>(
     let hit_m = M::from_bools(&is_hit);
     let lambert = U(kind).eq(U::splat(Kind::Lambert as u32));
     let glass = U(kind).eq(U::splat(Kind::Glass as u32));
+    let is_pbr = U(kind).eq(U::splat(Kind::Pbr as u32));
+    let any_pbr = (0..n_lanes).any(|l| on[l] && kind[l] == Kind::Pbr as u32);
 
     // The lanes' paths.
     let (o, d) = (V::<N>::load(&p.o, k), V::<N>::load(&p.d, k));
@@ -254,13 +299,51 @@ pub(super) fn shade<const N: usize>(
     let computed = M::from_bools(&sphere).select_v(sphere_n, face.normalize());
     let n = M::from_bools(&given).select_v(V::from_rows(&nrm), computed);
     let nrm = n.rows();
-    let color = V::from_rows(&color);
+    let mut color = V::from_rows(&color);
     let radiance = V::from_rows(&radiance);
+    let (mut metallic, mut roughness) = (F(metallic), F(roughness));
+    let x = o + d.scale(t);
+    // surface::surface where the lanes read textures or vertex normals: the base colour times
+    // the colour texture, the pbr factors times the metallic-roughness texture's blue and
+    // green, the interpolated normal (elsewhere the material and the face's normal, which is
+    // what surface::surface gives there too).
+    let mut shading = n;
+    if surf.iter().any(|&s| s) {
+        let corner = |j: usize| V::new(F(corners[3 * j]), F(corners[3 * j + 1]), F(corners[3 * j + 2]));
+        let (b, c) = lane_surface::barycentrics(corner(0), corner(1), corner(2), x);
+        let w = [one - b - c, b, c];
+        let tc = lane_surface::texture(g, surf, color_tex, tri, w);
+        color = color.mul_elem(V::new(tc[0], tc[1], tc[2]));
+        let mr = lane_surface::texture(g, surf, mr_tex, tri, w);
+        let has_mr = !U(mr_tex).eq(U::splat(0));
+        roughness = has_mr.select(roughness * mr[1], roughness);
+        metallic = has_mr.select(metallic * mr[2], metallic);
+        shading = lane_surface::normals(g, surf, tri, w, n);
+    }
 
-    // The background of a miss, weighted 1 (no environment light to weigh it against); the
-    // emission of an emissive hit, weighted against the light samples.
+    // The background of a miss (weighted against next-event estimation's samples of the
+    // environment, lane after lane, where there is one); the emission of an emissive hit,
+    // weighted against the light samples.
     let alive = seg.le(U::splat(f.max_depth));
-    let w = one;
+    let (bg, w) = if g.environment.is_empty() {
+        (bg, one)
+    } else {
+        let (mut c, mut w) = ([[0.0f32; N]; 3], [1.0f32; N]);
+        let dr = d.rows();
+        for l in 0..n_lanes {
+            if !on[l] || is_hit[l] || !alive.lane(l) {
+                continue;
+            }
+            let dir = v3(&dr, l);
+            let pdf_env = if specular.lane(l) { 0.0 } else { environment::pdf(g, dir) };
+            if pdf_env > 0.0 {
+                w[l] = path::power_heuristic(pdf_b.0[l], pdf_env);
+            }
+            let b = environment::background(g, f, dir);
+            (c[0][l], c[1][l], c[2][l]) = (b.x, b.y, b.z);
+        }
+        (V::from_rows(&c), F(w))
+    };
     let s_miss = sum + beta.mul_elem(bg).scale(w);
     let cos_l = emitted_cos(U(flags), -d.dot(n));
     let mean = (radiance.x + radiance.y + radiance.z) / F::splat(3.0);
@@ -275,19 +358,19 @@ pub(super) fn shade<const N: usize>(
     let u: [F<N>; 6] = std::array::from_fn(|_| draw(&mut rng, cont));
     let front = d.dot(n).lt(zero);
     let ng = front.select_v(n, -n);
-    let x = o + d.scale(t);
 
-    // The light sample of each Lambertian vertex.
-    let want: [bool; N] = std::array::from_fn(|l| on[l] && cont.lane(l) && lambert.lane(l));
+    // The light sample of each Lambertian and pbr vertex.
+    let nee_kind = lambert | is_pbr;
+    let want: [bool; N] = std::array::from_fn(|l| on[l] && cont.lane(l) && nee_kind.lane(l));
     let ls = lights::sample(g, f, facts.lights_in_lanes, x, [u[0], u[1], u[2]], want);
-    // Lane after lane: a mirror's reflecting normal (surface::shading_frame).
+    // Lane after lane: the shading normal of mirrors, pbr surfaces and interpolated normals
+    // (surface::shading_frame); the face's elsewhere.
     let mut ns = ng.rows();
-    let dr = d.rows();
+    let (dr, sh) = (d.rows(), shading.rows());
     for l in 0..n_lanes {
-        if on[l] && cont.lane(l) && kind[l] == Kind::Mirror as u32 {
-            let nl = v3(&nrm, l);
-            let (_, sn) =
-                surface::shading_frame(&g.materials[material[l] as usize], front.lane(l), nl, nl, -v3(&dr, l));
+        if on[l] && cont.lane(l) && (kind[l] == Kind::Mirror as u32 || kind[l] == Kind::Pbr as u32 || smooth[l]) {
+            let m = &g.materials[material[l] as usize];
+            let (_, sn) = surface::shading_frame(m, front.lane(l), v3(&nrm, l), v3(&sh, l), -v3(&dr, l));
             for a in 0..3 {
                 ns[a][l] = sn[a];
             }
@@ -295,16 +378,25 @@ pub(super) fn shade<const N: usize>(
     }
     let ns = V::from_rows(&ns);
     let wo = -d;
+    // The pbr lobes seen from wo.
+    let lobes = any_pbr.then(|| pbr::lobes(color, metallic, roughness, wo.dot(ns)));
 
     // The light sample's value (bsdf::eval's Lambertian branch, behind path::eval_above's
     // face test) and its shadow ray.
     let wi = ls.dir;
     let cos_i = wi.dot(ns);
     let above = wi.dot(ng).gt(zero) & cos_i.gt(zero);
-    let fc = above.select_v(color.scale(cos_i * F::splat(INV_PI)), V::splat([0.0; 3]));
-    let pdf_l = above.select(cos_i * F::splat(INV_PI), zero);
+    let mut fc = above.select_v(color.scale(cos_i * F::splat(INV_PI)), V::splat([0.0; 3]));
+    let mut pdf_l = above.select(cos_i * F::splat(INV_PI), zero);
+    if let Some(lobes) = &lobes {
+        // path::eval_above's face test, bsdf::eval's, then the material's own.
+        let (pf, pp) = pbr::eval(lobes, wo, wi, ns);
+        let face = !wi.dot(ng).le(zero) & !cos_i.le(zero);
+        fc = (is_pbr & face).select_v(pf, (is_pbr & !face).select_v(V::splat([0.0; 3]), fc));
+        pdf_l = (is_pbr & face).select(pp, (is_pbr & !face).select(zero, pdf_l));
+    }
     let value = beta.mul_elem(fc).mul_elem(ls.value).scale(power_heuristic(ls.pdf, pdf_l));
-    let nee_m = cont & lambert & ls.on & fc.max_component().gt(zero);
+    let nee_m = cont & nee_kind & ls.on & fc.max_component().gt(zero);
     let nee_o = spawn_origin(o, d, t, ng);
 
     // The BSDF sample. Glass: reflect or refract by the Fresnel term.
@@ -320,15 +412,26 @@ pub(super) fn shade<const N: usize>(
     let mirror_w = schlick(color, cos_g);
     // Lambertian: a cosine-weighted direction about the shading normal; its angle's sine and
     // cosine lane after lane.
-    let has_bs = cont & (!lambert | color.max_component().gt(zero));
+    let mut has_bs = cont & (!lambert | color.max_component().gt(zero));
     let (sin_phi, cos_phi) = u[5].sin_cos_turns();
     let r = u[4].sqrt();
     let local = V::new(r * cos_phi, r * sin_phi, (one - u[4]).max(zero).sqrt());
     let (tb, bb) = basis(ns);
     let world = (tb.scale(local.x) + bb.scale(local.y) + ns.scale(local.z)).normalize();
-    let dir = lambert.select_v(world, glass.select_v(glass_dir, mirror_dir));
-    let weight = lambert.select_v(color, glass.select_v(glass_w, mirror_w));
-    let pdf = lambert.select(local.z * F::splat(INV_PI), zero);
+    let mut dir = lambert.select_v(world, glass.select_v(glass_dir, mirror_dir));
+    let mut weight = lambert.select_v(color, glass.select_v(glass_w, mirror_w));
+    let mut pdf = lambert.select(local.z * F::splat(INV_PI), zero);
+    if let Some(lobes) = &lobes {
+        // bsdf::pbr_sample: the lobe by u[3], its direction by u[4], u[5] (the diffuse base's
+        // is the Lambertian one above), weighed by bsdf::pbr_eval.
+        let pd = pbr::sample_dir(lobes, wo, ns, [u[3], u[4], u[5]], world);
+        let (pf, pp) = pbr::eval(lobes, wo, pd, ns);
+        let ok = pbr::samples(lobes, wo.dot(ns)) & pp.gt(zero);
+        has_bs = (is_pbr & cont & ok) | (!is_pbr & has_bs);
+        dir = is_pbr.select_v(pd, dir);
+        weight = is_pbr.select_v(pf.div(pp), weight);
+        pdf = is_pbr.select(pp, pdf);
+    }
 
     // The face test, the path weight, Russian roulette and the next ray.
     let leaks = !glass & dir.dot(ng).le(zero);
@@ -362,7 +465,7 @@ pub(super) fn shade<const N: usize>(
         put(&mut p.sum[a], k, ns_, on_m);
     }
     put(&mut p.pdf, k, pdf, go);
-    put_u(&mut p.specular, k, (!lambert).select_u(U::splat(1), U::splat(0)), go);
+    put_u(&mut p.specular, k, (!nee_kind).select_u(U::splat(1), U::splat(0)), go);
     put_u(&mut p.seg, k, seg.wrapping_add(U::splat(1)), go);
     put_u(&mut p.rng, k, rng, on_m);
 
@@ -456,14 +559,4 @@ fn schlick<const N: usize>(f0: V<N>, cos: F<N>) -> V<N> {
     let m = m.gt(one).select(one, m);
     let m5 = m * m * m * m * m;
     f0 + (V::splat([1.0; 3]) - f0).scale(m5)
-}
-
-/// [`bsdf::basis`].
-#[inline(always)]
-fn basis<const N: usize>(n: V<N>) -> (V<N>, V<N>) {
-    let one = F::splat(1.0);
-    let sign = n.z.ge(F::splat(0.0)).select(one, -one);
-    let a = -one / (sign + n.z);
-    let b = n.x * n.y * a;
-    (V::new(one + sign * n.x * n.x * a, sign * b, -sign * n.x), V::new(b, sign + n.y * n.y * a, -n.y))
 }
