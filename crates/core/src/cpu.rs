@@ -41,13 +41,16 @@ impl PathTracer {
 impl Default for PathTracer {
     /// The widest lanes this processor runs; one path at a time on an x86-64 without AVX2,
     /// where the portable lanes' fused multiply-adds are library calls (measured twice as slow
-    /// as one path at a time on the Cornell box). STRAHL_CPU_TRACER = `one-by-one`, `avx2` or
-    /// `portable` chooses, for comparisons from the command line.
+    /// as one path at a time on the Cornell box). STRAHL_CPU_TRACER = `one-by-one`, `avx2`,
+    /// `portable`, or `bundles` / `one-ray` (the widest lanes, every ray after the camera's
+    /// walking that way) chooses, for comparisons from the command line.
     fn default() -> Self {
         match std::env::var("STRAHL_CPU_TRACER").as_deref() {
             Ok("one-by-one") => return PathTracer::OneByOne,
             Ok("avx2") if Isa::Avx2.runs_here() => return PathTracer::Lanes(Isa::Avx2),
             Ok("portable") => return PathTracer::Lanes(Isa::Portable),
+            Ok("bundles") => return PathTracer::LanesWalking(Isa::detect(), lanes::Walk::Bundles),
+            Ok("one-ray") => return PathTracer::LanesWalking(Isa::detect(), lanes::Walk::OneRay),
             _ => {}
         }
         match Isa::detect() {

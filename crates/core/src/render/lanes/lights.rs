@@ -7,6 +7,7 @@
 // instructions.
 #![allow(clippy::needless_range_loop)]
 
+use super::environment;
 use super::lane::{F, M, U, V};
 use crate::layout::{FlatScene, FrameParams, MATERIAL_TWO_SIDED};
 use crate::math::V3;
@@ -55,10 +56,16 @@ pub(super) fn sample<const N: usize>(
         pdf: F::splat(0.0),
     };
     if !lanes {
+        // The environment's samples in lanes where it is a map sampled by importance (the
+        // choice between it and the area emitters as emitters::sample makes it); the others
+        // lane after lane.
+        let env = environment::map(g);
+        let to_env: [bool; N] =
+            std::array::from_fn(|l| want[l] && env.is_some_and(|e| f.num_emitters == 0 || u[0].0[l] < e.select_prob));
         let (xr, mut dir, mut value) = (x.rows(), [[0.0f32; N]; 3], [[0.0f32; N]; 3]);
         let mut on = [false; N];
         for l in 0..N {
-            if !want[l] {
+            if !want[l] || to_env[l] {
                 continue;
             }
             let p = V3::new(xr[0][l], xr[1][l], xr[2][l]);
@@ -73,6 +80,14 @@ pub(super) fn sample<const N: usize>(
             }
         }
         (out.on, out.dir, out.value) = (M::from_bools(&on), V::from_rows(&dir), V::from_rows(&value));
+        if let Some(e) = env.filter(|_| to_env.contains(&true)) {
+            let (env_on, dir, value, pdf) = environment::sample(g, e, u[1], u[2], to_env);
+            out.on = out.on | env_on;
+            out.dir = env_on.select_v(dir, out.dir);
+            out.value = env_on.select_v(value, out.value);
+            out.pdf = env_on.select(pdf, out.pdf);
+            out.dist = env_on.select(F::splat(f32::MAX), out.dist);
+        }
         return out;
     }
     if f.num_emitters == 0 {

@@ -14,6 +14,7 @@
 //! `tests/path_tracing.rs` checks it.
 
 mod camera;
+mod environment;
 mod lane;
 mod lights;
 mod paths;

@@ -10,6 +10,7 @@
 //! after lane between the loops. Every other vertex is shaded by [`path::shade_vertex`]
 //! itself.
 
+use super::environment as lane_env;
 use super::lane::{F, M, U, V};
 use super::lights;
 use super::paths::Paths;
@@ -325,13 +326,22 @@ pub(super) fn shade<const N: usize>(
     // environment, lane after lane, where there is one); the emission of an emissive hit,
     // weighted against the light samples.
     let alive = seg.le(U::splat(f.max_depth));
+    let miss: [bool; N] = std::array::from_fn(|l| on[l] && !is_hit[l] && alive.lane(l));
     let (bg, w) = if g.environment.is_empty() {
         (bg, one)
+    } else if let Some(e) = lane_env::map(g) {
+        if miss.contains(&true) {
+            let c = lane_env::radiance(g, e, d, miss);
+            let p_env = specular.select(zero, lane_env::pdf(g, e, d, miss));
+            (c, p_env.gt(zero).select(power_heuristic(pdf_b, p_env), one))
+        } else {
+            (bg, one)
+        }
     } else {
         let (mut c, mut w) = ([[0.0f32; N]; 3], [1.0f32; N]);
         let dr = d.rows();
         for l in 0..n_lanes {
-            if !on[l] || is_hit[l] || !alive.lane(l) {
+            if !miss[l] {
                 continue;
             }
             let dir = v3(&dr, l);

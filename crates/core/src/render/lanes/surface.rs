@@ -52,13 +52,12 @@ pub(super) fn texture<const N: usize>(
     w: [F<N>; 3],
 ) -> [F<N>; 4] {
     let (mut uv, mut lin, mut off) = ([[[0.0f32; N]; 2]; 3], [[0.0f32; N]; 4], [[0.0f32; N]; 2]);
-    let (mut size, mut wraps) = ([[0.0f32; N]; 2], [[0u32; N]; 2]);
-    let mut any = false;
+    let mut index = [None; N];
     for l in 0..N {
         if !on[l] || texture[l] == 0 {
             continue;
         }
-        any = true;
+        index[l] = Some(texture[l] - 1);
         let t = &g.textures[texture[l] as usize - 1];
         let a = &g.triangle_attrs[tri[l] as usize];
         let set = if t.flags & TEXTURE_UV1 != 0 { &a.second_uv } else { &a.uv };
@@ -69,20 +68,30 @@ pub(super) fn texture<const N: usize>(
             lin[k][l] = t.linear[k];
         }
         (off[0][l], off[1][l]) = (t.offset_uv[0], t.offset_uv[1]);
-        (size[0][l], size[1][l]) = (t.width as f32, t.height as f32);
-        wraps[0][l] = (t.flags >> TEXTURE_WRAP_U_SHIFT) & 3;
-        wraps[1][l] = (t.flags >> TEXTURE_WRAP_V_SHIFT) & 3;
     }
-    let one = F::splat(1.0);
-    if !any {
-        return [one; 4];
+    if index.iter().all(Option::is_none) {
+        return [F::splat(1.0); 4];
     }
     // lerp_uv, then the use's transform.
     let at = |k: usize| F(uv[0][k]) * w[0] + F(uv[1][k]) * w[1] + F(uv[2][k]) * w[2];
     let (u0, v0) = (at(0), at(1));
     let u = F(lin[0]) * u0 + F(lin[1]) * v0 + F(off[0]);
     let v = F(lin[2]) * u0 + F(lin[3]) * v0 + F(off[1]);
-    // sample_rgba, bilinear.
+    sample_rgba(g, index, u, v)
+}
+
+/// [`crate::render::texture::sample_rgba`], bilinear, in the lanes with a texture
+/// (`texture[l]`: its index in the scene's table) at (u, v); 1 in the others.
+#[inline(always)]
+pub(super) fn sample_rgba<const N: usize>(g: &FlatScene, texture: [Option<u32>; N], u: F<N>, v: F<N>) -> [F<N>; 4] {
+    let (mut size, mut wraps) = ([[0.0f32; N]; 2], [[0u32; N]; 2]);
+    for l in 0..N {
+        let Some(i) = texture[l] else { continue };
+        let t = &g.textures[i as usize];
+        (size[0][l], size[1][l]) = (t.width as f32, t.height as f32);
+        wraps[0][l] = (t.flags >> TEXTURE_WRAP_U_SHIFT) & 3;
+        wraps[1][l] = (t.flags >> TEXTURE_WRAP_V_SHIFT) & 3;
+    }
     let s = wrap_coord(u, U(wraps[0])) * F(size[0]) - F::splat(0.5);
     let r = wrap_coord(v, U(wraps[1])) * F(size[1]) - F::splat(0.5);
     let (x0, y0) = (s.map(f32::floor), r.map(f32::floor));
@@ -90,10 +99,8 @@ pub(super) fn texture<const N: usize>(
     // Lane after lane: the four texels.
     let mut px = [[[0.0f32; N]; 4]; 4];
     for l in 0..N {
-        if !on[l] || texture[l] == 0 {
-            continue;
-        }
-        let t = &g.textures[texture[l] as usize - 1];
+        let Some(i) = texture[l] else { continue };
+        let t = &g.textures[i as usize];
         let (w, h) = (t.width as i32, t.height as i32);
         let (xa, ya) = (x0.0[l] as i32, y0.0[l] as i32);
         let (xa, xb) = (wrap_index(xa, w, wraps[0][l]), wrap_index(xa + 1, w, wraps[0][l]));
@@ -105,8 +112,9 @@ pub(super) fn texture<const N: usize>(
             }
         }
     }
+    let one = F::splat(1.0);
     let lerp = |a: F<N>, b: F<N>, t: F<N>| a * (one - t) + b * t;
-    let has = M::from_bools(&std::array::from_fn(|l| on[l] && texture[l] != 0));
+    let has = M::from_bools(&texture.map(|t| t.is_some()));
     std::array::from_fn(|k| {
         let top = lerp(F(px[0][k]), F(px[1][k]), fx);
         let bottom = lerp(F(px[2][k]), F(px[3][k]), fx);
