@@ -238,6 +238,6 @@ fn lanes_equal_the_one_by_one_tracer_on_a_textured_gltf_under_a_map() {
     let lanes: Vec<bool> = facts.materials.iter().map(Option::is_some).collect();
     // (After the file's three, the scene's default material.)
     assert_eq!(lanes[..3], [true, false, true], "which materials the lanes shade");
-    assert!(facts.lanes_ok && !prep.gpu.environment.is_empty() && !prep.gpu.triangle_attrs.is_empty());
+    assert!(facts.lanes_ok && facts.rich && !prep.gpu.environment.is_empty() && !prep.gpu.triangle_attrs.is_empty());
     check("pbr.toml", &prep, 40, 30, 6, 3);
 }

@@ -60,8 +60,10 @@ pub(super) fn sample<const N: usize>(
         // choice between it and the area emitters as emitters::sample makes it); the others
         // lane after lane.
         let env = environment::map(g);
-        let to_env: [bool; N] =
-            std::array::from_fn(|l| want[l] && env.is_some_and(|e| f.num_emitters == 0 || u[0].0[l] < e.select_prob));
+        let mut to_env = [false; N];
+        for l in 0..N {
+            to_env[l] = want[l] && env.is_some_and(|e| f.num_emitters == 0 || u[0].0[l] < e.select_prob);
+        }
         let (xr, mut dir, mut value) = (x.rows(), [[0.0f32; N]; 3], [[0.0f32; N]; 3]);
         let mut on = [false; N];
         for l in 0..N {

@@ -356,17 +356,13 @@ impl<'f> Tracer<'f> {
                     Walk::Bundles => (&self.hits[..], None),
                     Walk::OneRay => (&self.nearest[k..], Some(&self.one_hits[k..])),
                 };
-                shade::shade::<N>(
-                    inp,
-                    self.facts,
-                    &mut self.paths,
-                    k,
-                    n,
-                    hits,
-                    records,
-                    &mut self.more,
-                    &mut self.shadow,
-                );
+                // (Called directly, not through a pointer: inlined here, in the ISA's code.)
+                let (p, more, shadow) = (&mut self.paths, &mut self.more, &mut self.shadow);
+                if self.facts.rich {
+                    shade::shade::<N, true>(inp, self.facts, p, k, n, hits, records, more, shadow);
+                } else {
+                    shade::shade::<N, false>(inp, self.facts, p, k, n, hits, records, more, shadow);
+                }
                 t = Self::lap(t, &mut times.shade);
                 k += n;
             }

@@ -114,12 +114,18 @@ pub(super) fn sample_rgba<const N: usize>(g: &FlatScene, texture: [Option<u32>; 
     }
     let one = F::splat(1.0);
     let lerp = |a: F<N>, b: F<N>, t: F<N>| a * (one - t) + b * t;
-    let has = M::from_bools(&texture.map(|t| t.is_some()));
-    std::array::from_fn(|k| {
+    let mut has = [false; N];
+    for l in 0..N {
+        has[l] = texture[l].is_some();
+    }
+    let has = M::from_bools(&has);
+    let mut out = [one; 4];
+    for (k, c) in out.iter_mut().enumerate() {
         let top = lerp(F(px[0][k]), F(px[1][k]), fx);
         let bottom = lerp(F(px[2][k]), F(px[3][k]), fx);
-        has.select(lerp(top, bottom, fy), one)
-    })
+        *c = has.select(lerp(top, bottom, fy), one);
+    }
+    out
 }
 
 /// The shading normals of `surface::surface` from the vertex normals, in lanes `on` whose
