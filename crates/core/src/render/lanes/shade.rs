@@ -1,14 +1,15 @@
 //! A bundle's vertices shaded lane by lane: [`path::shade_vertex`] over SIMD lanes.
 //!
-//! The common vertices (a diffuse, emissive, smooth mirror or glass surface without textures,
-//! vertex colours, vertex normals or alpha, or the background, in a scene without an
-//! environment light or point and directional lights) are shaded by loops over the lanes,
-//! which the compiler turns into vector instructions; each loop calls the one-path tracer's
-//! own routines ([`spawn_origin`], [`power_heuristic`], [`bsdf::basis`], ...) or performs its
-//! operations in the same order, so every lane computes what [`path::shade_vertex`] computes,
-//! bit for bit. Steps that do not vectorise (choosing a light, sine and cosine) run lane
-//! after lane between the loops. Every other vertex is shaded by [`path::shade_vertex`]
-//! itself.
+//! The common vertices (a diffuse, emissive, smooth mirror, glass or metallic-roughness
+//! surface, with colour and metallic-roughness textures read bilinearly and vertex normals,
+//! or the background or environment map, in a scene without point and directional lights)
+//! are shaded by loops over the lanes, which the compiler turns into vector instructions;
+//! each loop calls the one-path tracer's own routines ([`spawn_origin`], [`power_heuristic`],
+//! [`surface::shading_frame`], ...) or performs its operations in the same order
+//! ([`pbr`], [`lane_surface`], [`lane_env`]), so every lane computes what
+//! [`path::shade_vertex`] computes, bit for bit. Steps that do not vectorise (choosing a
+//! light, sines, cosines and arc tangents) run lane after lane between the loops. Every other
+//! vertex is shaded by [`path::shade_vertex`] itself.
 
 use super::environment as lane_env;
 use super::lane::{F, M, U, V};
