@@ -44,8 +44,8 @@ pub struct Facts {
     /// Area lights are sampled in lanes ([`lights::in_lanes`]).
     pub lights_in_lanes: bool,
     /// The lanes shade pbr materials, textures, vertex normals or an environment here: a
-    /// scene without them is shaded by code compiled without them (measured 6 % faster on
-    /// the Cornell box).
+    /// scene without them is shaded by code compiled without them (the Cornell box 0.555 s
+    /// against 0.58 s with them compiled in).
     pub rich: bool,
     /// The render's choice of walks, measured by its first batches.
     choice: std::sync::Mutex<super::Choice>,
