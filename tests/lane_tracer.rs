@@ -102,8 +102,9 @@ fn png(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
     out.into_inner()
 }
 
-/// A glTF scene in `dir` under the golden environment map: a sphere of a metallic-roughness
-/// material with a colour and a metallic-roughness texture, on a ground of a rough dielectric
+/// A glTF scene in `dir` under the golden environment map: a glowing sphere of a
+/// metallic-roughness material with a colour and a metallic-roughness texture (an area light
+/// next-event estimation samples beside the map), on a ground of a rough dielectric
 /// one whose texture mirrors and clamps, both with vertex normals (what the lanes shade), and
 /// a small sphere whose texture is read nearest and which has a normal map (what they leave to
 /// the one-path code). Returns the scene file.
@@ -179,7 +180,7 @@ fn pbr_scene(dir: &Path) -> PathBuf {
         r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
   "meshes": [{{"primitives": [{}, {}, {}]}}],
   "materials": [
-    {{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0}}, "metallicFactor": 0.8, "roughnessFactor": 0.7, "metallicRoughnessTexture": {{"index": 1}}}}}},
+    {{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0}}, "metallicFactor": 0.8, "roughnessFactor": 0.7, "metallicRoughnessTexture": {{"index": 1}}}}, "emissiveFactor": [0.3, 0.2, 0.1]}},
     {{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 2}}, "roughnessFactor": 0.4}}, "normalTexture": {{"index": 3}}}},
     {{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 4}}, "baseColorFactor": [0.8, 0.8, 0.8, 1], "metallicFactor": 0.0, "roughnessFactor": 0.9}}}}
   ],
@@ -238,6 +239,7 @@ fn lanes_equal_the_one_by_one_tracer_on_a_textured_gltf_under_a_map() {
     let lanes: Vec<bool> = facts.materials.iter().map(Option::is_some).collect();
     // (After the file's three, the scene's default material.)
     assert_eq!(lanes[..3], [true, false, true], "which materials the lanes shade");
+    assert!(frame.num_emitters > 0, "the glowing sphere is an area light");
     assert!(facts.lanes_ok && facts.rich && !prep.gpu.environment.is_empty() && !prep.gpu.triangle_attrs.is_empty());
     check("pbr.toml", &prep, 40, 30, 6, 3);
 }
