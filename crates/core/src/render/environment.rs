@@ -214,7 +214,7 @@ pub fn background(g: &FlatScene, f: &FrameParams, d: V3<f32>) -> V3<f32> {
 
 /// First index k in 0..n with u < cdf[k + 1] (cdf[0] ≤ u < cdf[n] = 1): the cell `u` selects.
 #[inline]
-fn find_cell(cdf: &[f32], u: f32) -> usize {
+pub(crate) fn find_cell(cdf: &[f32], u: f32) -> usize {
     let (mut lo, mut hi) = (0usize, cdf.len() - 2);
     while lo < hi {
         let mid = (lo + hi) / 2;

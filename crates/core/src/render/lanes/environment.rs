@@ -12,6 +12,7 @@
 use super::lane::{F, M, V};
 use super::surface::sample_rgba;
 use crate::layout::{ENV_MAP, ENV_UNIFORM, FlatScene, GpuEnvironment, TEXTURE_NEAREST};
+use crate::render::environment::find_cell;
 const PI: f32 = std::f32::consts::PI;
 
 /// The scene's environment where the lanes evaluate it: a map sampled by importance.
@@ -95,21 +96,6 @@ pub(super) fn pdf<const N: usize>(g: &FlatScene, e: &GpuEnvironment, d: V<N>, on
     let m = to_map(e, d);
     let sin_theta = (m.x * m.x + m.z * m.z).sqrt();
     density(e, F(row), F(col), sin_theta)
-}
-
-/// First index k with u < cdf[k + 1] (`environment::find_cell`).
-#[inline(always)]
-fn find_cell(cdf: &[f32], u: f32) -> usize {
-    let (mut lo, mut hi) = (0usize, cdf.len() - 2);
-    while lo < hi {
-        let mid = (lo + hi) / 2;
-        if u < cdf[mid + 1] {
-            hi = mid;
-        } else {
-            lo = mid + 1;
-        }
-    }
-    lo
 }
 
 /// `environment::sample` of map `e` from numbers `u1`, `u2` in the lanes of `want`: the lanes
