@@ -12,7 +12,7 @@
 use super::lane::{F, M, V};
 use super::surface::sample_rgba;
 use crate::layout::{ENV_MAP, ENV_UNIFORM, FlatScene, GpuEnvironment, TEXTURE_NEAREST};
-use crate::render::environment::find_cell;
+use crate::render::environment::{cell_pdf, find_cell};
 const PI: f32 = std::f32::consts::PI;
 
 /// The scene's environment where the lanes evaluate it: a map sampled by importance.
@@ -61,21 +61,10 @@ pub(super) fn radiance<const N: usize>(g: &FlatScene, e: &GpuEnvironment, d: V<N
     V::splat(e.radiance).mul_elem(V::new(c[0], c[1], c[2]))
 }
 
-/// The widths of cell (i, j) of the distribution in its row and in the marginal: what
-/// `environment::cell_pdf` multiplies.
-#[inline(always)]
-fn cell(g: &FlatScene, e: &GpuEnvironment, i: usize, j: usize) -> (f32, f32) {
-    let (w, h) = (e.width as usize, e.height as usize);
-    let marginal = &g.env_distribution[..h + 1];
-    let row = &g.env_distribution[h + 1 + j * (w + 1)..h + 1 + (j + 1) * (w + 1)];
-    (row[i + 1] - row[i], marginal[j + 1] - marginal[j])
-}
-
-/// `environment::cell_pdf` from the widths [`cell`] gives, then the density over the sphere
+/// The density over the sphere of cells of density `p` over (u, v) (`environment::cell_pdf`)
 /// at sin θ = `sin_theta` (0 where that is not positive).
 #[inline(always)]
-fn density<const N: usize>(e: &GpuEnvironment, row: F<N>, col: F<N>, sin_theta: F<N>) -> F<N> {
-    let p = row * F::splat(e.width as f32) * (col * F::splat(e.height as f32));
+fn density<const N: usize>(e: &GpuEnvironment, p: F<N>, sin_theta: F<N>) -> F<N> {
     let pdf = F::splat(e.select_prob) * p / (F::splat(2.0 * PI * PI) * sin_theta);
     sin_theta.le(F::splat(0.0)).select(F::splat(0.0), pdf)
 }
@@ -84,18 +73,18 @@ fn density<const N: usize>(e: &GpuEnvironment, row: F<N>, col: F<N>, sin_theta: 
 #[inline(always)]
 pub(super) fn pdf<const N: usize>(g: &FlatScene, e: &GpuEnvironment, d: V<N>, on: [bool; N]) -> F<N> {
     let (u, v) = map_uv(e, d, on);
-    let (mut row, mut col) = ([0.0f32; N], [0.0f32; N]);
+    let mut p = [0.0f32; N];
     for l in 0..N {
         if !on[l] {
             continue;
         }
         let i = ((u.0[l] * e.width as f32) as usize).min(e.width as usize - 1);
         let j = ((v.0[l] * e.height as f32) as usize).min(e.height as usize - 1);
-        (row[l], col[l]) = cell(g, e, i, j);
+        p[l] = cell_pdf(g, e, i, j);
     }
     let m = to_map(e, d);
     let sin_theta = (m.x * m.x + m.z * m.z).sqrt();
-    density(e, F(row), F(col), sin_theta)
+    density(e, F(p), sin_theta)
 }
 
 /// `environment::sample` of map `e` from numbers `u1`, `u2` in the lanes of `want`: the lanes
@@ -112,7 +101,7 @@ pub(super) fn sample<const N: usize>(
     let marginal = &g.env_distribution[..h + 1];
     // Lane after lane: the row, then the column, by their distributions.
     let (mut ij, mut lo, mut width) = ([[0.0f32; N]; 2], [[0.0f32; N]; 2], [[1.0f32; N]; 2]);
-    let (mut row_w, mut col_w) = ([0.0f32; N], [0.0f32; N]);
+    let mut p = [0.0f32; N];
     for l in 0..N {
         if !want[l] {
             continue;
@@ -123,7 +112,7 @@ pub(super) fn sample<const N: usize>(
         (ij[0][l], ij[1][l]) = (i as f32, j as f32);
         (lo[0][l], lo[1][l]) = (row[i], marginal[j]);
         (width[0][l], width[1][l]) = (row[i + 1] - row[i], marginal[j + 1] - marginal[j]);
-        (row_w[l], col_w[l]) = (width[0][l], width[1][l]);
+        p[l] = cell_pdf(g, e, i, j);
     }
     let dv = (u1 - F(lo[1])) / F(width[1]);
     let du = (u2 - F(lo[0])) / F(width[0]);
@@ -140,7 +129,7 @@ pub(super) fn sample<const N: usize>(
     let sin_theta = F(st);
     let m = V::new(sin_theta * F(sp), F(ct), sin_theta * F(cp));
     let dir = from_map(e, m);
-    let pdf = density(e, F(row_w), F(col_w), sin_theta);
+    let pdf = density(e, F(p), sin_theta);
     let on = M::from_bools(&want) & !sin_theta.le(F::splat(0.0)) & pdf.gt(F::splat(0.0));
     let value = radiance(g, e, dir, want).div(pdf);
     (on, dir, value, pdf)

@@ -96,7 +96,7 @@ pub(super) fn lobes<const N: usize>(base: V<N>, metallic: F<N>, roughness: F<N>,
 
 /// `microfacet::schlick`.
 #[inline(always)]
-fn schlick<const N: usize>(f0: V<N>, cos: F<N>) -> V<N> {
+pub(super) fn schlick<const N: usize>(f0: V<N>, cos: F<N>) -> V<N> {
     let m = clamp01(F::splat(1.0) - cos);
     let m5 = m * m * m * m * m;
     f0 + (V::splat([1.0; 3]) - f0).scale(m5)

@@ -15,7 +15,7 @@ use super::environment as lane_env;
 use super::lane::{F, M, U, V};
 use super::lights;
 use super::paths::Paths;
-use super::pbr::{self, basis};
+use super::pbr::{self, basis, schlick};
 use super::surface as lane_surface;
 use crate::layout::{
     ATTR_COLORS, ATTR_NORMALS, FlatScene, LIGHT_STAND_IN, MATERIAL_ALPHA, MATERIAL_TWO_SIDED, MATERIAL_UNLIT,
@@ -582,16 +582,4 @@ fn fresnel_dielectric<const N: usize>(cos_i: F<N>, eta: F<N>) -> F<N> {
     let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     sin2_t.ge(one).select(one, F::splat(0.5) * (r_parl * r_parl + r_perp * r_perp))
-}
-
-/// [`schlick`].
-#[inline(always)]
-fn schlick<const N: usize>(f0: V<N>, cos: F<N>) -> V<N> {
-    let (zero, one) = (F::splat(0.0), F::splat(1.0));
-    // f32::clamp(0, 1): NaN stays NaN.
-    let m = F::splat(1.0) - cos;
-    let m = m.lt(zero).select(zero, m);
-    let m = m.gt(one).select(one, m);
-    let m5 = m * m * m * m * m;
-    f0 + (V::splat([1.0; 3]) - f0).scale(m5)
 }
