@@ -6,6 +6,7 @@
 
 mod common;
 
+use common::png;
 use std::path::{Path, PathBuf};
 use strahl_core::accel::bundle::Isa;
 use strahl_core::cpu::{self, PathTracer};
@@ -92,14 +93,6 @@ fn progressive_accumulations_are_equal() {
     for isa in Isa::available() {
         assert!(run(PathTracer::Lanes(isa)) == want, "{isa:?} lanes accumulate another image");
     }
-}
-
-/// A PNG of `w` × `h` texels from `f(x, y)` (8-bit RGB).
-fn png(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
-    let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb(f(x, y)));
-    let mut out = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut out, image::ImageFormat::Png).unwrap();
-    out.into_inner()
 }
 
 /// A glTF scene in `dir` under the golden environment map: a glowing sphere of a

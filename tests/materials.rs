@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{cpu_path_image, gpu, gpu_path_image};
+use common::{cpu_path_image, gpu, gpu_path_image, png};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use strahl_core::cpu;
@@ -36,14 +36,6 @@ fn quad() -> Mesh {
         colors: None,
         indices: vec![2, 3, 1, 2, 1, 0],
     }
-}
-
-/// A PNG of `w` × `h` RGB codes given per texel (row 0 at the top).
-fn png(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
-    let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb(f(x, y)));
-    let mut out = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut out, image::ImageFormat::Png).unwrap();
-    out.into_inner()
 }
 
 /// The four-quadrant texture of `tests/assets.rs`: red, green / blue, white.

@@ -176,3 +176,11 @@ pub fn mean_and_error(values: &[f64]) -> (f64, f64) {
     let var = values.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
     (mean, (var / n).sqrt())
 }
+
+/// A PNG of `w` × `h` RGB codes given per texel (row 0 at the top).
+pub fn png(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
+    let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb(f(x, y)));
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png).unwrap();
+    out.into_inner()
+}
