@@ -146,6 +146,47 @@ pub fn sin_cos_turns(u: f32) -> (f32, f32) {
     }
 }
 
+/// tan(π/8): arguments above it are turned by π/4 before the polynomial.
+pub(crate) const TAN_PI_8: f32 = 0.414_213_57;
+
+/// The angle of (x, y) in (−π, π], as `f32::atan2` (atan2(±0, −0) = ±π, NaN in, NaN out), in
+/// multiplies, adds and divides only, so that the lane path tracer (`F::atan2`) computes the
+/// same bits in every lane. a = min(|x|, |y|) / max(|x|, |y|) ∈ [0, 1]; above tan(π/8) it is
+/// replaced by (a − 1)/(a + 1) and π/4 added (Muller, "Elementary Functions", ch. 11), so the
+/// polynomial only sees |t| ≤ tan(π/8): atan t ≈ t + t·t²·P(t²), P of degree 3 fitted for
+/// least maximum relative error (Lawson's iteration; 2.1·10⁻⁸ in exact arithmetic, under
+/// one f32 ulp evaluated in f32). The octant is then restored: π/2 − r, π − r, the sign of y.
+/// Absolute error at most 3·2⁻²³ (tested against f64 in `atan2_and_acos_are_accurate`); the
+/// GPU uses its own `atan2`.
+#[inline]
+pub fn atan2(y: f32, x: f32) -> f32 {
+    let (ax, ay) = (x.abs(), y.abs());
+    // (Comparisons, not min and max, so that a NaN reaches the quotient.)
+    let steep = ax < ay;
+    let (lo, hi) = if steep { (ax, ay) } else { (ay, ax) };
+    let a = if hi == 0.0 { 0.0 } else { lo / hi };
+    let turned = a > TAN_PI_8;
+    let t = if turned { (a - 1.0) / (a + 1.0) } else { a };
+    let z = t * t;
+    let p = t + t * z * (ATAN_P[0] + z * (ATAN_P[1] + z * (ATAN_P[2] + z * ATAN_P[3])));
+    let r = if turned { std::f32::consts::FRAC_PI_4 + p } else { p };
+    let r = if steep { std::f32::consts::FRAC_PI_2 - r } else { r };
+    let r = if x.is_sign_negative() { std::f32::consts::PI - r } else { r };
+    if y.is_sign_negative() { -r } else { r }
+}
+
+/// The coefficients of [`atan2`]'s polynomial P.
+pub(crate) const ATAN_P: [f32; 4] = [-0.333_329_49, 0.199_777_1, -0.138_776_79, 0.080_537_22];
+
+/// arccos of x clamped to [−1, 1], as atan2(√((1 − x)(1 + x)), x): [`atan2`]'s error, and
+/// accurate near ±1 where arccos is steep (1 − x is exact there). Absolute error at most
+/// 3·2⁻²³ (`atan2_and_acos_are_accurate`).
+#[inline]
+pub fn acos(x: f32) -> f32 {
+    let x = x.clamp(-1.0, 1.0);
+    atan2(((1.0 - x) * (1.0 + x)).sqrt(), x)
+}
+
 /// A 3-vector of [`Real`]s.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct V3<R> {
@@ -354,6 +395,34 @@ mod tests {
         assert_eq!(sin_cos_turns(0.0), (0.0, 1.0));
         assert_eq!(sin_cos_turns(0.25), (1.0, 0.0));
         assert_eq!(sin_cos_turns(0.5), (0.0, -1.0));
+    }
+
+    #[test]
+    fn atan2_and_acos_are_accurate() {
+        let mut worst = (0.0f64, 0.0f64);
+        let n = 1 << 12;
+        for i in 0..=n {
+            for j in 0..=n {
+                // A grid over [−2, 2]², and the unit circle's finest angles near the axes.
+                let (y, x) = (4.0 * i as f32 / n as f32 - 2.0, 4.0 * j as f32 / n as f32 - 2.0);
+                let a = (i as f64 + j as f64 / n as f64) / n as f64 * std::f64::consts::TAU;
+                for (y, x) in [(y, x), (a.sin() as f32, a.cos() as f32)] {
+                    let want = (y as f64).atan2(x as f64);
+                    worst.0 = worst.0.max((atan2(y, x) as f64 - want).abs());
+                }
+            }
+            let x = 2.0 * i as f32 / n as f32 - 1.0;
+            for x in [x, f32::from_bits(x.to_bits() ^ 1)] {
+                worst.1 = worst.1.max((acos(x) as f64 - (x as f64).clamp(-1.0, 1.0).acos()).abs());
+            }
+        }
+        assert!(worst.0 <= 3.0 / 8_388_608.0 && worst.1 <= 3.0 / 8_388_608.0, "worst absolute errors {worst:?}");
+        // The edges f32::atan2 defines.
+        for (y, x) in [(0.0f32, 0.0f32), (-0.0, 0.0), (0.0, -0.0), (-0.0, -0.0), (1.0, 0.0), (-1.0, 0.0), (0.0, -1.0)] {
+            assert_eq!(atan2(y, x).to_bits(), y.atan2(x).to_bits(), "atan2({y}, {x})");
+        }
+        assert_eq!((acos(1.0), acos(-1.0), acos(2.0)), (0.0, std::f32::consts::PI, 0.0));
+        assert!(atan2(f32::NAN, 1.0).is_nan() && atan2(1.0, f32::NAN).is_nan() && acos(f32::NAN).is_nan());
     }
 
     #[test]

@@ -195,7 +195,7 @@ fn from_map(e: &GpuEnvironment, d: V3<f32>) -> V3<f32> {
 #[inline]
 fn map_uv(e: &GpuEnvironment, d: V3<f32>) -> (f32, f32) {
     let m = to_map(e, d);
-    (0.5 + m.x.atan2(m.z) * (0.5 / PI), m.y.clamp(-1.0, 1.0).acos() * (1.0 / PI))
+    (0.5 + crate::math::atan2(m.x, m.z) * (0.5 / PI), crate::math::acos(m.y) * (1.0 / PI))
 }
 
 /// Radiance arriving along `-d` from the environment, i.e. seen by a ray leaving in direction
@@ -277,12 +277,13 @@ pub fn sample(g: &FlatScene, f: &FrameParams, u1: f32, u2: f32) -> Option<(V3<f3
         let du = (u2 - row[i]) / (row[i + 1] - row[i]);
         let u = (i as f32 + du) / w as f32;
         let v = (j as f32 + dv) / h as f32;
-        let (phi, theta) = (2.0 * PI * (u - 0.5), PI * v);
-        let sin_theta = theta.sin();
+        // θ = πv and φ = 2π(u − 1/2): sin φ = −sin 2πu, cos φ = −cos 2πu.
+        let (sin_theta, cos_theta) = crate::math::sin_cos_turns(0.5 * v);
+        let (sin_u, cos_u) = crate::math::sin_cos_turns(u);
         if sin_theta <= 0.0 {
             return None;
         }
-        let m = V3::new(sin_theta * phi.sin(), theta.cos(), sin_theta * phi.cos());
+        let m = V3::new(sin_theta * -sin_u, cos_theta, sin_theta * -cos_u);
         (from_map(e, m), e.select_prob * cell_pdf(g, e, i, j) / (2.0 * PI * PI * sin_theta))
     };
     if !(pdf > 0.0) {

@@ -55,10 +55,10 @@ pub fn ggx_sample_visible(alpha: f32, wo: V3<f32>, u1: f32, u2: f32) -> V3<f32> 
     let t1 = if lensq > 0.0 { V3::new(-vh.y, vh.x, 0.0) / lensq.sqrt() } else { V3::new(1.0, 0.0, 0.0) };
     let t2 = vh.cross(t1);
     let r = u1.sqrt();
-    let phi = 2.0 * PI * u2;
-    let p1 = r * phi.cos();
+    let (sin_phi, cos_phi) = crate::math::sin_cos_turns(u2);
+    let p1 = r * cos_phi;
     let s = 0.5 * (1.0 + vh.z);
-    let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * (r * phi.sin());
+    let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * (r * sin_phi);
     let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
     V3::new(alpha * nh.x, alpha * nh.y, nh.z.max(0.0)).normalize()
 }

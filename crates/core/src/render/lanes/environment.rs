@@ -1,9 +1,10 @@
 //! The environment map in lanes: `background`, `pdf` and `sample` of
 //! [`crate::render::environment`] for a map sampled by importance, by their operations in their
 //! order, so every lane computes what the scalar routines compute, bit for bit. The
-//! distributions are searched and the angles' sines, cosines and arc tangents taken lane after
-//! lane (the scalar `f32` functions); the rest runs over the lanes. A constant sky, or a map
-//! sampled uniformly, is left to the scalar routines.
+//! distributions are searched and the texels fetched lane after lane; the rest, the angles'
+//! sines, cosines and arc tangents included ([`crate::math::sin_cos_turns`],
+//! [`crate::math::atan2`], [`crate::math::acos`]), runs over the lanes. A constant sky, or a
+//! map sampled uniformly, is left to the scalar routines.
 
 // Lane loops index several arrays with the lane: the form the compiler turns into vector
 // instructions.
@@ -38,25 +39,23 @@ fn from_map<const N: usize>(e: &GpuEnvironment, d: V<N>) -> V<N> {
     V::new(c * d.x + s * d.z, d.y, -s * d.x + c * d.z)
 }
 
-/// `environment::map_uv` (the arc tangent and cosine lane after lane, in the lanes `on`).
+/// `environment::map_uv`.
 #[inline(always)]
-fn map_uv<const N: usize>(e: &GpuEnvironment, d: V<N>, on: [bool; N]) -> (F<N>, F<N>) {
+fn map_uv<const N: usize>(e: &GpuEnvironment, d: V<N>) -> (F<N>, F<N>) {
     let m = to_map(e, d);
-    let (mut atan, mut acos) = ([0.0f32; N], [0.0f32; N]);
-    for l in 0..N {
-        if !on[l] {
-            continue;
-        }
-        atan[l] = m.x.0[l].atan2(m.z.0[l]);
-        acos[l] = m.y.0[l].clamp(-1.0, 1.0).acos();
-    }
-    (F::splat(0.5) + F(atan) * F::splat(0.5 / PI), F(acos) * F::splat(1.0 / PI))
+    (F::splat(0.5) + m.x.atan2(m.z) * F::splat(0.5 / PI), m.y.acos() * F::splat(1.0 / PI))
 }
 
 /// `environment::background` of map `e` along `d`, in the lanes `on`.
 #[inline(always)]
 pub(super) fn radiance<const N: usize>(g: &FlatScene, e: &GpuEnvironment, d: V<N>, on: [bool; N]) -> V<N> {
-    let (u, v) = map_uv(e, d, on);
+    let (u, v) = map_uv(e, d);
+    at_uv(g, e, u, v, on)
+}
+
+/// The map's radiance at (u, v), in the lanes `on`.
+#[inline(always)]
+fn at_uv<const N: usize>(g: &FlatScene, e: &GpuEnvironment, u: F<N>, v: F<N>, on: [bool; N]) -> V<N> {
     let c = sample_rgba(g, on.map(|o| o.then_some(e.texture)), u, v);
     V::splat(e.radiance).mul_elem(V::new(c[0], c[1], c[2]))
 }
@@ -69,10 +68,22 @@ fn density<const N: usize>(e: &GpuEnvironment, p: F<N>, sin_theta: F<N>) -> F<N>
     sin_theta.le(F::splat(0.0)).select(F::splat(0.0), pdf)
 }
 
-/// `environment::pdf` of map `e` along `d`, in the lanes `on`.
+/// `environment::background` and `environment::pdf` of map `e` along `d`, in the lanes `on`
+/// (the map coordinates computed once).
 #[inline(always)]
-pub(super) fn pdf<const N: usize>(g: &FlatScene, e: &GpuEnvironment, d: V<N>, on: [bool; N]) -> F<N> {
-    let (u, v) = map_uv(e, d, on);
+pub(super) fn radiance_and_pdf<const N: usize>(
+    g: &FlatScene,
+    e: &GpuEnvironment,
+    d: V<N>,
+    on: [bool; N],
+) -> (V<N>, F<N>) {
+    let (u, v) = map_uv(e, d);
+    (at_uv(g, e, u, v, on), pdf_at(g, e, d, u, v, on))
+}
+
+/// `environment::pdf` of map `e` along `d`, at its map coordinates (u, v), in the lanes `on`.
+#[inline(always)]
+fn pdf_at<const N: usize>(g: &FlatScene, e: &GpuEnvironment, d: V<N>, u: F<N>, v: F<N>, on: [bool; N]) -> F<N> {
     let mut p = [0.0f32; N];
     for l in 0..N {
         if !on[l] {
@@ -118,16 +129,9 @@ pub(super) fn sample<const N: usize>(
     let du = (u2 - F(lo[0])) / F(width[0]);
     let u = (F(ij[0]) + du) / F::splat(w as f32);
     let v = (F(ij[1]) + dv) / F::splat(h as f32);
-    let (phi, theta) = (F::splat(2.0 * PI) * (u - F::splat(0.5)), F::splat(PI) * v);
-    let (mut st, mut ct, mut sp, mut cp) = ([0.0f32; N], [0.0f32; N], [0.0f32; N], [0.0f32; N]);
-    for l in 0..N {
-        if want[l] {
-            (st[l], ct[l]) = (theta.0[l].sin(), theta.0[l].cos());
-            (sp[l], cp[l]) = (phi.0[l].sin(), phi.0[l].cos());
-        }
-    }
-    let sin_theta = F(st);
-    let m = V::new(sin_theta * F(sp), F(ct), sin_theta * F(cp));
+    let (sin_theta, cos_theta) = (F::splat(0.5) * v).sin_cos_turns();
+    let (sin_u, cos_u) = u.sin_cos_turns();
+    let m = V::new(sin_theta * -sin_u, cos_theta, sin_theta * -cos_u);
     let dir = from_map(e, m);
     let pdf = density(e, F(p), sin_theta);
     let on = M::from_bools(&want) & !sin_theta.le(F::splat(0.0)) & pdf.gt(F::splat(0.0));
@@ -201,7 +205,11 @@ mod tests {
                 }
             });
             let vd = V::new(F(d.map(|v| v.x)), F(d.map(|v| v.y)), F(d.map(|v| v.z)));
-            let (r, p) = (radiance(&g, e, vd, [true; N]), pdf(&g, e, vd, [true; N]));
+            let (r, p) = radiance_and_pdf(&g, e, vd, [true; N]);
+            assert_eq!(
+                radiance(&g, e, vd, [true; N]).rows().map(|a| a.map(f32::to_bits)),
+                r.rows().map(|a| a.map(f32::to_bits))
+            );
             for l in 0..N {
                 assert_eq!(
                     lane(r, l),

@@ -180,6 +180,42 @@ impl<const N: usize> F<N> {
         (sn, cs)
     }
 
+    /// [`crate::math::atan2`] of (x, y = self) in every lane, by its operations.
+    #[inline(always)]
+    pub fn atan2(self, x: Self) -> Self {
+        use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+        let s = F::splat;
+        let c = crate::math::ATAN_P;
+        let (ax, ay) = (x.abs(), self.abs());
+        let steep = ax.lt(ay);
+        let (lo, hi) = (steep.select(ax, ay), steep.select(ay, ax));
+        let a = hi.eq(s(0.0)).select(s(0.0), lo / hi);
+        let turned = a.gt(s(crate::math::TAN_PI_8));
+        let t = turned.select((a - s(1.0)) / (a + s(1.0)), a);
+        let z = t * t;
+        let p = t + t * z * (s(c[0]) + z * (s(c[1]) + z * (s(c[2]) + z * s(c[3]))));
+        let r = turned.select(s(FRAC_PI_4) + p, p);
+        let r = steep.select(s(FRAC_PI_2) - r, r);
+        let r = x.sign_negative().select(s(PI) - r, r);
+        self.sign_negative().select(-r, r)
+    }
+    /// [`crate::math::acos`] in every lane, by its operations.
+    #[inline(always)]
+    pub fn acos(self) -> Self {
+        let s = F::splat;
+        let x = self.map(|v| v.clamp(-1.0, 1.0));
+        ((s(1.0) - x) * (s(1.0) + x)).sqrt().atan2(x)
+    }
+    /// The lanes whose sign bit is set.
+    #[inline(always)]
+    pub fn sign_negative(self) -> M<N> {
+        let mut r = [0u32; N];
+        for l in 0..N {
+            r[l] = ((self.0[l].to_bits() as i32) >> 31) as u32;
+        }
+        M(r)
+    }
+
     /// Lanes `k .. k + N` of `v`.
     #[inline(always)]
     pub fn load(v: &[f32], k: usize) -> Self {
@@ -405,6 +441,28 @@ mod tests {
             for (l, &x) in chunk.iter().enumerate() {
                 let (ws, wc) = crate::math::sin_cos_turns(x);
                 assert_eq!((s.0[l].to_bits(), c.0[l].to_bits()), (ws.to_bits(), wc.to_bits()), "u = {x}");
+            }
+        }
+    }
+
+    /// The lanes' arc tangent and arc cosine are the scalar ones bit for bit, on a grid, at
+    /// signed zeros, at the octant edges and at NaN.
+    #[test]
+    fn lane_atan2_and_acos_equal_the_scalar_ones() {
+        let edge = crate::math::TAN_PI_8;
+        let mut v: Vec<f32> = (0..=256).map(|k| k as f32 / 64.0 - 2.0).collect();
+        v.extend([0.0, -0.0, edge, -edge, f32::from_bits(edge.to_bits() + 1), f32::NAN, f32::INFINITY]);
+        let pairs: Vec<(f32, f32)> = v.iter().flat_map(|&y| v.iter().map(move |&x| (y, x))).collect();
+        for chunk in pairs.chunks(16) {
+            let mut y = F::<16>::splat(0.0);
+            let mut x = F::<16>::splat(1.0);
+            for (l, &(a, b)) in chunk.iter().enumerate() {
+                (y.0[l], x.0[l]) = (a, b);
+            }
+            let (t, c) = (y.atan2(x), x.acos());
+            for (l, &(a, b)) in chunk.iter().enumerate() {
+                assert_eq!(t.0[l].to_bits(), crate::math::atan2(a, b).to_bits(), "atan2({a}, {b})");
+                assert_eq!(c.0[l].to_bits(), crate::math::acos(b).to_bits(), "acos({b})");
             }
         }
     }

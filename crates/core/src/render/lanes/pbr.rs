@@ -1,8 +1,8 @@
 //! glTF's metallic-roughness material in lanes: [`crate::render::pbr::pbr_lobes`], the
 //! material's `bsdf::eval` and `bsdf::sample` over SIMD lanes, each by the scalar routine's
 //! operations in its order (so every lane computes what the one-path tracer computes, bit for
-//! bit). The albedo table is read lane after lane; the cosine and sine of the visible-normal
-//! sample's angle are the scalar `f32::cos` and `f32::sin` of each lane, as in
+//! bit). The albedo table is read lane after lane; the visible-normal sample's angle is a
+//! fraction of a turn whose sine and cosine are [`crate::math::sin_cos_turns`] in lanes, as in
 //! [`microfacet::ggx_sample_visible`].
 
 // Lane loops index several arrays with the lane: the form the compiler turns into vector
@@ -165,14 +165,10 @@ fn sample_visible<const N: usize>(alpha: F<N>, wo: V<N>, u1: F<N>, u2: F<N>) -> 
     let t1 = V::new(has.select(-vh.y / len, one), has.select(vh.x / len, zero), has.select(zero / len, zero));
     let t2 = V::new(vh.y * t1.z - vh.z * t1.y, vh.z * t1.x - vh.x * t1.z, vh.x * t1.y - vh.y * t1.x);
     let r = u1.sqrt();
-    let phi = F::splat(2.0 * PI) * u2;
-    let (mut cos, mut sin) = ([0.0f32; N], [0.0f32; N]);
-    for l in 0..N {
-        (cos[l], sin[l]) = (phi.0[l].cos(), phi.0[l].sin());
-    }
-    let p1 = r * F(cos);
+    let (sin, cos) = u2.sin_cos_turns();
+    let p1 = r * cos;
     let s = F::splat(0.5) * (one + vh.z);
-    let p2 = (one - s) * (one - p1 * p1).max(zero).sqrt() + s * (r * F(sin));
+    let p2 = (one - s) * (one - p1 * p1).max(zero).sqrt() + s * (r * sin);
     let nh = t1.scale(p1) + t2.scale(p2) + vh.scale((one - p1 * p1 - p2 * p2).max(zero).sqrt());
     V::new(alpha * nh.x, alpha * nh.y, nh.z.max(zero)).normalize()
 }

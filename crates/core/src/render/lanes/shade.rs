@@ -8,7 +8,7 @@
 //! [`surface::shading_frame`], ...) or performs its operations in the same order
 //! ([`pbr`], [`lane_surface`], [`lane_env`]), so every lane computes what
 //! [`path::shade_vertex`] computes, bit for bit. Steps that do not vectorise (choosing a
-//! light, sines, cosines and arc tangents) run lane after lane between the loops. Every other
+//! light, searching a distribution, fetching texels) run lane after lane between the loops. Every other
 //! vertex is shaded by [`path::shade_vertex`] itself.
 
 use super::environment as lane_env;
@@ -349,8 +349,8 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
         (bg, one)
     } else if let Some(e) = lane_env::map(g) {
         if miss.contains(&true) {
-            let c = lane_env::radiance(g, e, d, miss);
-            let p_env = specular.select(zero, lane_env::pdf(g, e, d, miss));
+            let (c, p_env) = lane_env::radiance_and_pdf(g, e, d, miss);
+            let p_env = specular.select(zero, p_env);
             (c, p_env.gt(zero).select(power_heuristic(pdf_b, p_env), one))
         } else {
             (bg, one)
