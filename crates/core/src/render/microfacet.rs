@@ -16,7 +16,6 @@
 //! albedo bends fastest (grazing μ at r = 1).
 
 use crate::math::V3;
-use std::sync::OnceLock;
 
 const PI: f32 = std::f32::consts::PI;
 
@@ -73,28 +72,40 @@ const STRATA: usize = 48;
 /// resolution.
 pub const MIN_ALPHA: f32 = 1e-3;
 
-/// E₁ then E₅, each `ROUGHNESS_STEPS` rows of `COS_STEPS` values (row r, column μ).
+/// E₁ then E₅, each `ROUGHNESS_STEPS` rows of `COS_STEPS` values (row r, column μ): the
+/// integrals of [`integrate`], stored with the code (computing them took about 35 ms of the
+/// first render of every process with a pbr material). `the_stored_table_is_the_integral`
+/// checks every bit; after a change to the integration,
+/// `STRAHL_BLESS=1 cargo test --release -p strahl-core the_stored_table` writes it anew.
+static TABLE: [f32; 2 * ROUGHNESS_STEPS * COS_STEPS] = include!("microfacet_albedo.in");
+
+/// The albedo table ([`TABLE`]).
+#[inline]
 pub fn table() -> &'static [f32] {
-    static TABLE: OnceLock<Vec<f32>> = OnceLock::new();
-    TABLE.get_or_init(|| {
-        let mut e1 = Vec::with_capacity(ROUGHNESS_STEPS * COS_STEPS);
-        let mut e5 = Vec::with_capacity(ROUGHNESS_STEPS * COS_STEPS);
-        for i in 0..ROUGHNESS_STEPS {
-            let r = i as f64 / (ROUGHNESS_STEPS - 1) as f64;
-            let alpha = ((r * r) as f32).max(MIN_ALPHA);
-            for j in 0..COS_STEPS {
-                let mu = (j as f64 / (COS_STEPS - 1) as f64).max(1e-3);
-                let (a, b) = integrate(alpha, mu);
-                e1.push(a as f32);
-                e5.push(b as f32);
-            }
+    &TABLE
+}
+
+/// The table [`TABLE`] stores, computed.
+#[cfg(test)]
+fn integrate_table() -> Vec<f32> {
+    let mut e1 = Vec::with_capacity(ROUGHNESS_STEPS * COS_STEPS);
+    let mut e5 = Vec::with_capacity(ROUGHNESS_STEPS * COS_STEPS);
+    for i in 0..ROUGHNESS_STEPS {
+        let r = i as f64 / (ROUGHNESS_STEPS - 1) as f64;
+        let alpha = ((r * r) as f32).max(MIN_ALPHA);
+        for j in 0..COS_STEPS {
+            let mu = (j as f64 / (COS_STEPS - 1) as f64).max(1e-3);
+            let (a, b) = integrate(alpha, mu);
+            e1.push(a as f32);
+            e5.push(b as f32);
         }
-        e1.extend(e5);
-        e1
-    })
+    }
+    e1.extend(e5);
+    e1
 }
 
 /// (E₁, E₅) at α and μ, by stratified visible-normal samples (in f64 where it sums).
+#[cfg(test)]
 fn integrate(alpha: f32, mu: f64) -> (f64, f64) {
     let wo = V3::new((1.0 - mu * mu).max(0.0).sqrt() as f32, 0.0, mu as f32);
     let lo = ggx_lambda(alpha, wo.z) as f64;
@@ -141,6 +152,22 @@ pub fn lookup(r: f32, cos_o: f32) -> (f32, f32) {
 mod tests {
     use super::*;
     use crate::render::sampler::Sampler;
+
+    /// The stored table is what [`integrate`] computes, bit for bit (with `STRAHL_BLESS=1`:
+    /// written anew).
+    #[test]
+    fn the_stored_table_is_the_integral() {
+        let t = integrate_table();
+        if std::env::var("STRAHL_BLESS").is_ok_and(|v| v == "1") {
+            let rows: Vec<String> = t.chunks(8).map(|c| format!("    {},", c.iter().map(|v| format!("{v:?}")).collect::<Vec<_>>().join(", "))).collect();
+            let text = format!("// E₁ then E₅ of microfacet.rs, written by its test the_stored_table_is_the_integral.\n[\n{}\n]\n", rows.join("\n"));
+            std::fs::write(concat!(env!("CARGO_MANIFEST_DIR"), "/src/render/microfacet_albedo.in"), text).expect("writes the table");
+            return;
+        }
+        for (k, (&got, want)) in table().iter().zip(t).enumerate() {
+            assert_eq!(got.to_bits(), want.to_bits(), "entry {k}: stored {got}, integral {want}; write it anew with STRAHL_BLESS=1");
+        }
+    }
 
     /// Table entries against independent random estimates (10⁶ samples each): the
     /// stratified sums are as good as the claim in the header.
