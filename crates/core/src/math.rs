@@ -176,7 +176,7 @@ pub fn atan2(y: f32, x: f32) -> f32 {
 }
 
 /// The coefficients of [`atan2`]'s polynomial P.
-pub(crate) const ATAN_P: [f32; 4] = [-0.333_329_49, 0.199_777_1, -0.138_776_79, 0.080_537_22];
+pub(crate) const ATAN_P: [f32; 4] = [-0.333_329_5, 0.199_777_1, -0.138_776_8, 0.080_537_22];
 
 /// arccos of x clamped to [−1, 1], as atan2(√((1 − x)(1 + x)), x): [`atan2`]'s error, and
 /// accurate near ±1 where arccos is steep (1 − x is exact there). Absolute error at most

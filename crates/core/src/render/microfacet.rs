@@ -1,10 +1,10 @@
 //! GGX microfacet reflection (Walter et al. 2007; Heitz 2014, 2018) and its directional
 //! albedo (`microfacet.wgsl` is the twin).
 //!
-//! **The albedo table** is computed once: what the pbr material needs to
-//! make up for the energy single scattering loses (multiple scattering between microfacets) and
-//! to weigh its diffuse base under the dielectric coat. The table is computed here and given to
-//! the shaders as a shared constant (`#{GGX_ALBEDO}` in `backend/gpu/shared.rs`), so both
+//! **The albedo table**: what the pbr material needs to make up for the energy single
+//! scattering loses (multiple scattering between microfacets) and to weigh its diffuse base
+//! under the dielectric coat. The table is integrated here, stored with the code
+//! (`microfacet_albedo.in`, checked against the integral by a test) and given to the shaders as a shared constant (`#{GGX_ALBEDO}` in `backend/gpu/shared.rs`), so both
 //! backends interpolate the same numbers (`ggx_albedo` in `shaders/modules/microfacet.wgsl`).
 //!
 //! With Schlick's Fresnel F = F0 + (1 − F0)(1 − cos θ_h)⁵ the albedo is linear in F0:
@@ -67,6 +67,7 @@ pub const ROUGHNESS_STEPS: usize = 16;
 /// Samples along μ = cos θ_o ∈ [0, 1] (μ_j = j / (M − 1), the first evaluated at 10⁻³).
 pub const COS_STEPS: usize = 32;
 /// Strata per axis of the visible-normal samples behind each entry.
+#[cfg(test)]
 const STRATA: usize = 48;
 /// The smallest α tabulated: below it GGX is a mirror whose albedo is 1 in the table's
 /// resolution.
@@ -159,13 +160,24 @@ mod tests {
     fn the_stored_table_is_the_integral() {
         let t = integrate_table();
         if std::env::var("STRAHL_BLESS").is_ok_and(|v| v == "1") {
-            let rows: Vec<String> = t.chunks(8).map(|c| format!("    {},", c.iter().map(|v| format!("{v:?}")).collect::<Vec<_>>().join(", "))).collect();
-            let text = format!("// E₁ then E₅ of microfacet.rs, written by its test the_stored_table_is_the_integral.\n[\n{}\n]\n", rows.join("\n"));
-            std::fs::write(concat!(env!("CARGO_MANIFEST_DIR"), "/src/render/microfacet_albedo.in"), text).expect("writes the table");
+            let rows: Vec<String> = t
+                .chunks(8)
+                .map(|c| format!("    {},", c.iter().map(|v| format!("{v:?}")).collect::<Vec<_>>().join(", ")))
+                .collect();
+            let text = format!(
+                "// E₁ then E₅ of microfacet.rs, written by its test the_stored_table_is_the_integral.\n[\n{}\n]\n",
+                rows.join("\n")
+            );
+            std::fs::write(concat!(env!("CARGO_MANIFEST_DIR"), "/src/render/microfacet_albedo.in"), text)
+                .expect("writes the table");
             return;
         }
         for (k, (&got, want)) in table().iter().zip(t).enumerate() {
-            assert_eq!(got.to_bits(), want.to_bits(), "entry {k}: stored {got}, integral {want}; write it anew with STRAHL_BLESS=1");
+            assert_eq!(
+                got.to_bits(),
+                want.to_bits(),
+                "entry {k}: stored {got}, integral {want}; write it anew with STRAHL_BLESS=1"
+            );
         }
     }
 
