@@ -398,12 +398,13 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
         want[l] = on[l] && cont.lane(l) && nee_kind.lane(l);
     }
     let ls = lights::sample(g, f, facts.lights_in_lanes, x, [u[0], u[1], u[2]], want);
-    // Lane after lane: the shading normal of mirrors, pbr surfaces and interpolated normals
-    // (surface::shading_frame); the face's elsewhere.
+    // Lane after lane: the shading normal of interpolated normals (surface::shading_frame);
+    // the face's elsewhere, which is what shading_frame gives there for every material (its
+    // mirrors' and pbr surfaces' reflecting_normal keeps a normal that is the face's).
     let mut ns = ng.rows();
     let (dr, sh) = (d.rows(), shading.rows());
     for l in 0..n_lanes {
-        if on[l] && cont.lane(l) && (kind[l] == Kind::Mirror as u32 || kind[l] == Kind::Pbr as u32 || smooth[l]) {
+        if on[l] && cont.lane(l) && smooth[l] {
             let m = &g.materials[material[l] as usize];
             let (_, sn) = surface::shading_frame(m, front.lane(l), v3(&nrm, l), v3(&sh, l), -v3(&dr, l));
             for a in 0..3 {
