@@ -214,15 +214,15 @@ pub fn background(g: &FlatScene, f: &FrameParams, d: V3<f32>) -> V3<f32> {
 
 /// First index k in 0..n with u < cdf[k + 1] (cdf[0] ≤ u < cdf[n] = 1): the cell `u` selects.
 #[inline]
-pub(crate) fn find_cell(cdf: &[f32], u: f32) -> usize {
-    let (mut lo, mut hi) = (0usize, cdf.len() - 2);
-    while lo < hi {
-        let mid = (lo + hi) / 2;
-        if u < cdf[mid + 1] {
-            hi = mid;
-        } else {
-            lo = mid + 1;
-        }
+fn find_cell(cdf: &[f32], u: f32) -> usize {
+    // Halving without branches on u (the lane tracer steps all its lanes at once the same
+    // way): the cells lo .. lo + n hold the answer; the upper half does where u reaches its
+    // lower edge cdf[lo + half].
+    let (mut lo, mut n) = (0usize, cdf.len() - 1);
+    while n > 1 {
+        let half = n / 2;
+        lo = if u < cdf[lo + half] { lo } else { lo + half };
+        n -= half;
     }
     lo
 }

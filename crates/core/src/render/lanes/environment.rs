@@ -1,8 +1,8 @@
 //! The environment map in lanes: `background`, `pdf` and `sample` of
 //! [`crate::render::environment`] for a map sampled by importance, by their operations in their
 //! order, so every lane computes what the scalar routines compute, bit for bit. The
-//! distributions are searched and the texels fetched lane after lane; the rest, the angles'
-//! sines, cosines and arc tangents included ([`crate::math::sin_cos_turns`],
+//! texels are fetched lane after lane; the rest, the distributions' searches (a step of all
+//! lanes at a time) and the angles' sines, cosines and arc tangents included ([`crate::math::sin_cos_turns`],
 //! [`crate::math::atan2`], [`crate::math::acos`]), runs over the lanes. A constant sky, or a
 //! map sampled uniformly, is left to the scalar routines.
 
@@ -13,7 +13,7 @@
 use super::lane::{F, M, V};
 use super::surface::sample_rgba;
 use crate::layout::{ENV_MAP, ENV_UNIFORM, FlatScene, GpuEnvironment, TEXTURE_NEAREST};
-use crate::render::environment::{cell_pdf, find_cell};
+use crate::render::environment::cell_pdf;
 const PI: f32 = std::f32::consts::PI;
 
 /// The scene's environment where the lanes evaluate it: a map sampled by importance.
@@ -98,6 +98,22 @@ fn pdf_at<const N: usize>(g: &FlatScene, e: &GpuEnvironment, d: V<N>, u: F<N>, v
     density(e, F(p), sin_theta)
 }
 
+/// `environment::find_cell` in every lane, in the distribution of `len` edges at
+/// `table[base[l]..]` for lane l: its halving steps, each taken by all lanes together.
+#[inline(always)]
+fn find_cells<const N: usize>(table: &[f32], base: [usize; N], len: usize, u: F<N>) -> [usize; N] {
+    let (mut lo, mut n) = ([0usize; N], len - 1);
+    while n > 1 {
+        let half = n / 2;
+        for l in 0..N {
+            let m = lo[l] + half;
+            lo[l] = if u.0[l] < table[base[l] + m] { lo[l] } else { m };
+        }
+        n -= half;
+    }
+    lo
+}
+
 /// `environment::sample` of map `e` from numbers `u1`, `u2` in the lanes of `want`: the lanes
 /// with a sample, its direction, its radiance over its density, and its density.
 #[inline(always)]
@@ -110,16 +126,22 @@ pub(super) fn sample<const N: usize>(
 ) -> (M<N>, V<N>, V<N>, F<N>) {
     let (w, h) = (e.width as usize, e.height as usize);
     let marginal = &g.env_distribution[..h + 1];
-    // Lane after lane: the row, then the column, by their distributions.
+    // The row, then the column, by their distributions, every lane at once (each lane's
+    // search in range whatever its number).
+    let js = find_cells(&g.env_distribution, [0; N], h + 1, u1);
+    let mut base = [0usize; N];
+    for l in 0..N {
+        base[l] = h + 1 + js[l] * (w + 1);
+    }
+    let is = find_cells(&g.env_distribution, base, w + 1, u2);
     let (mut ij, mut lo, mut width) = ([[0.0f32; N]; 2], [[0.0f32; N]; 2], [[1.0f32; N]; 2]);
     let mut p = [0.0f32; N];
     for l in 0..N {
         if !want[l] {
             continue;
         }
-        let j = find_cell(marginal, u1.0[l]);
-        let row = &g.env_distribution[h + 1 + j * (w + 1)..h + 1 + (j + 1) * (w + 1)];
-        let i = find_cell(row, u2.0[l]);
+        let (i, j) = (is[l], js[l]);
+        let row = &g.env_distribution[base[l]..base[l] + w + 1];
         (ij[0][l], ij[1][l]) = (i as f32, j as f32);
         (lo[0][l], lo[1][l]) = (row[i], marginal[j]);
         (width[0][l], width[1][l]) = (row[i + 1] - row[i], marginal[j + 1] - marginal[j]);

@@ -8,7 +8,7 @@
 //! [`surface::shading_frame`], ...) or performs its operations in the same order
 //! ([`pbr`], [`lane_surface`], [`lane_env`]), so every lane computes what
 //! [`path::shade_vertex`] computes, bit for bit. Steps that do not vectorise (choosing a
-//! light, searching a distribution, fetching texels) run lane after lane between the loops. Every other
+//! light, fetching texels) run lane after lane between the loops. Every other
 //! vertex is shaded by [`path::shade_vertex`] itself.
 
 use super::environment as lane_env;
