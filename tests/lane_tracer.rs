@@ -1,6 +1,7 @@
 //! The CPU's lane path tracer (`render/lanes`) against its reference, the one-path-at-a-time
 //! tracer (`render/path`): the same image bit for bit, with every lane set this processor
-//! runs and each walk of the rays after the camera's (bundles, one ray at a time, measured), on every shipped scene and on the golden scenes (area lights, glass, smooth and rough
+//! runs and each walk of the rays after the camera's (bundles, one ray at a time, measured),
+//! on every shipped scene and on the golden scenes (area lights, glass, smooth and rough
 //! mirrors, textures, an emissive texture, an environment map), and on sample counts and row
 //! widths that leave batches and bundles part full.
 

@@ -1,9 +1,9 @@
-//! glTF's metallic-roughness material in lanes: [`crate::render::pbr::pbr_lobes`], the
-//! material's `bsdf::eval` and `bsdf::sample` over SIMD lanes, each by the scalar routine's
-//! operations in its order (so every lane computes what the one-path tracer computes, bit for
-//! bit). The albedo table is read lane after lane; the visible-normal sample's angle is a
-//! fraction of a turn whose sine and cosine are [`crate::math::sin_cos_turns`] in lanes, as in
-//! [`microfacet::ggx_sample_visible`].
+//! glTF's metallic-roughness material and the rough (GGX) mirror in lanes:
+//! [`crate::render::pbr::pbr_lobes`], the materials' `bsdf::eval` and `bsdf::sample` over
+//! SIMD lanes, each by the scalar routine's operations in its order (so every lane computes
+//! what the one-path tracer computes, bit for bit). The albedo table is read lane after lane;
+//! the visible-normal sample's angle is a fraction of a turn whose sine and cosine are
+//! [`crate::math::sin_cos_turns`] in lanes, as in [`microfacet::ggx_sample_visible`].
 
 // Lane loops index several arrays with the lane: the form the compiler turns into vector
 // instructions.
@@ -173,18 +173,67 @@ fn sample_visible<const N: usize>(alpha: F<N>, wo: V<N>, u1: F<N>, u2: F<N>) -> 
     V::new(alpha * nh.x, alpha * nh.y, nh.z.max(zero)).normalize()
 }
 
+/// A visible normal of GGX roughness `alpha` about `ns` seen from `wo` (from `u1`, `u2`), and
+/// `wo` mirrored about it: `to_world(ggx_sample_visible(α, to_local(wo, ns), u1, u2), ns)` and
+/// `reflect(−wo, h)` of `bsdf`.
+#[inline(always)]
+fn ggx_reflect<const N: usize>(alpha: F<N>, wo: V<N>, ns: V<N>, u1: F<N>, u2: F<N>) -> (V<N>, V<N>) {
+    let (t, b) = basis(ns);
+    let local = V::new(wo.dot(t), wo.dot(b), wo.dot(ns));
+    let m = sample_visible(alpha, local, u1, u2);
+    let h = t.scale(m.x) + b.scale(m.y) + ns.scale(m.z);
+    let d = -wo;
+    (d - h.scale(F::splat(2.0) * d.dot(h)), h)
+}
+
 /// `bsdf::pbr_sample`'s direction: by `u0` the GGX lobe (a visible normal from `u1`, `u2`,
 /// `wo` mirrored about it) or the diffuse base (`cosine`: the cosine-weighted direction about
 /// `ns` the caller drew from `u1`, `u2`).
 #[inline(always)]
 pub(super) fn sample_dir<const N: usize>(l: &Lobes<N>, wo: V<N>, ns: V<N>, u: [F<N>; 3], cosine: V<N>) -> V<N> {
-    let (t, b) = basis(ns);
-    let local = V::new(wo.dot(t), wo.dot(b), wo.dot(ns));
-    let m = sample_visible(l.alpha, local, u[1], u[2]);
-    let h = t.scale(m.x) + b.scale(m.y) + ns.scale(m.z);
-    let d = -wo;
-    let spec = d - h.scale(F::splat(2.0) * d.dot(h));
+    let (spec, _) = ggx_reflect(l.alpha, wo, ns, u[1], u[2]);
     u[0].lt(l.p_spec).select_v(spec, cosine)
+}
+
+/// `bsdf::eval` of the rough conductor (a mirror of GGX α = `alpha` ≥ `MIN_ROUGHNESS` and
+/// colour `f0`): f·cos θ_i and the density.
+#[inline(always)]
+pub(super) fn conductor_eval<const N: usize>(alpha: F<N>, f0: V<N>, wo: V<N>, wi: V<N>, ns: V<N>) -> (V<N>, F<N>) {
+    let (zero, one) = (F::splat(0.0), F::splat(1.0));
+    let cos_i = wi.dot(ns);
+    let cos_o = wo.dot(ns);
+    let h = (wo + wi).normalize();
+    let cos_h = h.dot(ns);
+    let d = ggx_d(alpha, cos_h);
+    let (lo, li) = (ggx_lambda(alpha, cos_o), ggx_lambda(alpha, cos_i));
+    let g2 = one / (one + lo + li);
+    let g1 = one / (one + lo);
+    let f = schlick(f0, wo.dot(h));
+    let k = d / (F::splat(4.0) * cos_o);
+    let ok = !cos_i.le(zero) & !(cos_o.le(zero) | cos_h.le(zero));
+    (ok.select_v(f.scale(k * g2), V::splat([0.0; 3])), ok.select(k * g1, zero))
+}
+
+/// `bsdf::sample` of the rough conductor from `u1`, `u2`: the lanes with a sample, its
+/// direction, weight and density.
+#[inline(always)]
+pub(super) fn conductor_sample<const N: usize>(
+    alpha: F<N>,
+    f0: V<N>,
+    wo: V<N>,
+    ns: V<N>,
+    u1: F<N>,
+    u2: F<N>,
+) -> (M<N>, V<N>, V<N>, F<N>) {
+    let (zero, one) = (F::splat(0.0), F::splat(1.0));
+    let cos_o = wo.dot(ns);
+    let (dir, h) = ggx_reflect(alpha, wo, ns, u1, u2);
+    let cos_i = dir.dot(ns);
+    let ok = !(cos_i.le(zero) | cos_o.le(zero));
+    let (lo, li) = (ggx_lambda(alpha, cos_o), ggx_lambda(alpha, cos_i));
+    let weight = schlick(f0, wo.dot(h)).scale((one + lo) / (one + lo + li));
+    let pdf = ggx_d(alpha, h.dot(ns)) / ((one + lo) * F::splat(4.0) * cos_o);
+    (ok, dir, weight, pdf)
 }
 
 /// Lanes where `bsdf::pbr_sample` gives a direction at all (before its density test).
@@ -267,6 +316,41 @@ mod tests {
                     let w = sf.div(sp);
                     (lane(dir, k), lane(w, k), sp.0[k].to_bits())
                 });
+                let want = s.map(|s| {
+                    (s.dir.to_array().map(f32::to_bits), s.weight.to_array().map(f32::to_bits), s.pdf.to_bits())
+                });
+                assert_eq!(got, want, "lane {k}: sample");
+                compared += s.is_some() as usize;
+            }
+        }
+        assert!(compared > 2000 * N / 4, "only {compared} samples compared");
+    }
+
+    /// The rough conductor's eval and samples equal `bsdf`'s bit for bit.
+    #[test]
+    fn lanes_equal_the_scalar_rough_conductor() {
+        let mut rng = Sampler::new(21, 22, 23);
+        let mut compared = 0;
+        for _ in 0..2000 {
+            let m: [GpuMaterial; N] = std::array::from_fn(|_| GpuMaterial {
+                kind: MaterialKind::Mirror as u32,
+                color: [rng.next_f32(), rng.next_f32(), rng.next_f32()],
+                roughness: bsdf::MIN_ROUGHNESS + rng.next_f32().powi(2),
+                ..Default::default()
+            });
+            let ns: [V3<f32>; N] = std::array::from_fn(|_| unit(&mut rng));
+            let wo: [V3<f32>; N] = std::array::from_fn(|_| unit(&mut rng));
+            let wi: [V3<f32>; N] = std::array::from_fn(|_| unit(&mut rng));
+            let u: [F<N>; 2] = std::array::from_fn(|_| F(std::array::from_fn(|_| rng.next_f32())));
+            let (alpha, f0) = (F(m.map(|m| m.roughness)), v(m.map(|m| V3::from_array(m.color))));
+            let (f_cos, pdf) = conductor_eval(alpha, f0, v(wo), v(wi), v(ns));
+            let (ok, dir, weight, sp) = conductor_sample(alpha, f0, v(wo), v(ns), u[0], u[1]);
+            for k in 0..N {
+                let (wf, wp) = bsdf::eval(&m[k], wo[k], wi[k], ns[k]);
+                assert_eq!(lane(f_cos, k), wf.to_array().map(f32::to_bits), "lane {k}: f cos");
+                assert_eq!(pdf.0[k].to_bits(), wp.to_bits(), "lane {k}: pdf");
+                let s = bsdf::sample(&m[k], wo[k], ns[k], true, [0.5, u[0].0[k], u[1].0[k]]);
+                let got = ok.lane(k).then(|| (lane(dir, k), lane(weight, k), sp.0[k].to_bits()));
                 let want = s.map(|s| {
                     (s.dir.to_array().map(f32::to_bits), s.weight.to_array().map(f32::to_bits), s.pdf.to_bits())
                 });

@@ -1,15 +1,15 @@
 //! A bundle's vertices shaded lane by lane: [`path::shade_vertex`] over SIMD lanes.
 //!
-//! The common vertices (a diffuse, emissive, smooth mirror, glass or metallic-roughness
-//! surface, with colour and metallic-roughness textures read bilinearly and vertex normals,
-//! or the background or environment map, in a scene without point and directional lights)
-//! are shaded by loops over the lanes, which the compiler turns into vector instructions;
-//! each loop calls the one-path tracer's own routines ([`spawn_origin`], [`power_heuristic`],
-//! [`surface::shading_frame`], ...) or performs its operations in the same order
-//! ([`pbr`], [`lane_surface`], [`lane_env`]), so every lane computes what
+//! The common vertices (a diffuse, emissive, smooth or rough mirror, glass or
+//! metallic-roughness surface, with colour and metallic-roughness textures read bilinearly
+//! and vertex normals, or the background or environment map, in a scene without point and
+//! directional lights) are shaded by loops over the lanes, which the compiler turns into
+//! vector instructions; each loop calls the one-path tracer's own routines ([`spawn_origin`],
+//! [`power_heuristic`], [`surface::shading_frame`], ...) or performs its operations in the
+//! same order ([`pbr`], [`lane_surface`], [`lane_env`]), so every lane computes what
 //! [`path::shade_vertex`] computes, bit for bit. Steps that do not vectorise (choosing a
-//! light, fetching texels) run lane after lane between the loops. Every other
-//! vertex is shaded by [`path::shade_vertex`] itself.
+//! light, fetching texels) run lane after lane between the loops. Every other vertex is
+//! shaded by [`path::shade_vertex`] itself.
 
 use super::environment as lane_env;
 use super::lane::{F, M, U, V};
@@ -80,6 +80,8 @@ pub enum Kind {
     Glass = 2,
     /// glTF's metallic-roughness material ([`pbr`]).
     Pbr = 3,
+    /// A rough (GGX) mirror.
+    Rough = 4,
 }
 
 impl Facts {
@@ -100,7 +102,9 @@ impl Facts {
                 let untextured = m.color_texture == 0 && m.metal_rough_texture == 0;
                 let kind = match m.kind() {
                     MaterialKind::Diffuse | MaterialKind::Emissive => Some(Kind::Lambert),
-                    MaterialKind::Mirror if m.roughness < MIN_ROUGHNESS && untextured => Some(Kind::Mirror),
+                    MaterialKind::Mirror if untextured => {
+                        Some(if m.roughness < MIN_ROUGHNESS { Kind::Mirror } else { Kind::Rough })
+                    }
                     MaterialKind::Dielectric if untextured => Some(Kind::Glass),
                     MaterialKind::Pbr => Some(Kind::Pbr),
                     _ => None,
@@ -263,8 +267,9 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
                 }
                 ior[l] = m.ior;
                 material[l] = mi as u32;
+                roughness[l] = m.roughness;
                 if RICH {
-                    (metallic[l], roughness[l]) = (m.metallic, m.roughness);
+                    metallic[l] = m.metallic;
                 }
                 if RICH && prim.kind() == PrimKind::Triangle && !g.triangle_attrs.is_empty() {
                     let i = prim.index();
@@ -292,6 +297,8 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
     let glass = U(kind).eq(U::splat(Kind::Glass as u32));
     let is_pbr = if RICH { U(kind).eq(U::splat(Kind::Pbr as u32)) } else { M([0; N]) };
     let any_pbr = RICH && (0..n_lanes).any(|l| on[l] && kind[l] == Kind::Pbr as u32);
+    let is_rough = U(kind).eq(U::splat(Kind::Rough as u32));
+    let any_rough = (0..n_lanes).any(|l| on[l] && kind[l] == Kind::Rough as u32);
 
     // The lanes' paths.
     let (o, d) = (V::<N>::load(&p.o, k), V::<N>::load(&p.d, k));
@@ -391,8 +398,8 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
     let ng = front.select_v(n, -n);
     let x = o + d.scale(t);
 
-    // The light sample of each Lambertian and pbr vertex.
-    let nee_kind = lambert | is_pbr;
+    // The light sample of each Lambertian, pbr and rough mirror vertex.
+    let nee_kind = lambert | is_pbr | is_rough;
     let mut want = [false; N];
     for l in 0..N {
         want[l] = on[l] && cont.lane(l) && nee_kind.lane(l);
@@ -431,6 +438,12 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
         fc = (is_pbr & face).select_v(pf, (is_pbr & !face).select_v(V::splat([0.0; 3]), fc));
         pdf_l = (is_pbr & face).select(pp, (is_pbr & !face).select(zero, pdf_l));
     }
+    if any_rough {
+        let (rf, rp) = pbr::conductor_eval(roughness, color, wo, wi, ns);
+        let face = !wi.dot(ng).le(zero);
+        fc = (is_rough & face).select_v(rf, (is_rough & !face).select_v(V::splat([0.0; 3]), fc));
+        pdf_l = (is_rough & face).select(rp, (is_rough & !face).select(zero, pdf_l));
+    }
     let value = beta.mul_elem(fc).mul_elem(ls.value).scale(power_heuristic(ls.pdf, pdf_l));
     let nee_m = cont & nee_kind & ls.on & fc.max_component().gt(zero);
     let nee_o = spawn_origin(o, d, t, ng);
@@ -467,6 +480,15 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
         dir = is_pbr.select_v(pd, dir);
         weight = is_pbr.select_v(pf.div(pp), weight);
         pdf = is_pbr.select(pp, pdf);
+    }
+
+    if any_rough {
+        // bsdf::sample's rough mirror, by u[4], u[5].
+        let (ok, rd, rw, rp) = pbr::conductor_sample(roughness, color, wo, ns, u[4], u[5]);
+        has_bs = (is_rough & cont & ok) | (!is_rough & has_bs);
+        dir = is_rough.select_v(rd, dir);
+        weight = is_rough.select_v(rw, weight);
+        pdf = is_rough.select(rp, pdf);
     }
 
     // The face test, the path weight, Russian roulette and the next ray.
