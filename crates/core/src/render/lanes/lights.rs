@@ -1,7 +1,9 @@
-//! Area-light samples in lanes: [`emitters::sample`] for every lane at once, where the scene's
-//! emitters have no emission texture (and no environment light competes): the emitter chosen
-//! lane after lane, the point on it and the sample's value in lanes, by its operations.
-//! Elsewhere each lane calls [`emitters::sample`] itself.
+//! Light samples in lanes: [`emitters::sample`] for every lane at once. The choice between
+//! the environment and the area emitters is made in lanes; the environment map's samples are
+//! drawn in lanes ([`environment::sample`]); where the scene's emitters have no emission
+//! texture, the emitter is chosen lane after lane and the point on it and the sample's value
+//! are computed in lanes, by its operations. Elsewhere each lane calls [`emitters::sample`]
+//! itself.
 
 // Lane loops index several arrays with the lane: the form the compiler turns into vector
 // instructions.
@@ -23,22 +25,23 @@ pub(super) struct Samples<const N: usize> {
     pub pdf: F<N>,
 }
 
-/// Whether [`sample`] computes the lanes' samples itself: no environment light, and no
-/// emitter with an emission texture.
+/// Whether [`sample`] computes the area lights' samples itself: no emitter has an emission
+/// texture.
 pub(super) fn in_lanes(g: &FlatScene) -> bool {
-    g.environment.is_empty()
-        && g.emitters.iter().all(|e| {
-            let r = PrimRef(e.source);
-            let material = match r.kind() {
-                PrimKind::Triangle => g.triangles[r.index()].material,
-                _ => g.spheres[r.index()].material,
-            };
-            g.materials[material as usize].radiance_texture == 0
-        })
+    g.emitters.iter().all(|e| {
+        let r = PrimRef(e.source);
+        let material = match r.kind() {
+            PrimKind::Triangle => g.triangles[r.index()].material,
+            _ => g.spheres[r.index()].material,
+        };
+        g.materials[material as usize].radiance_texture == 0
+    })
 }
 
-/// [`emitters::sample`] for shading points `x` with numbers `u`, in the lanes of `want`
-/// (`lanes`: computed here, else lane by lane).
+/// [`emitters::sample`] for shading points `x` with numbers `u`, in the lanes of `want`:
+/// the choice between the environment and the area emitters as it makes it; the
+/// environment's samples in lanes where it is a map sampled by importance; the area
+/// emitters' in lanes where `lanes` ([`in_lanes`]). The others lane after lane.
 #[inline(always)]
 pub(super) fn sample<const N: usize>(
     g: &FlatScene,
@@ -55,48 +58,74 @@ pub(super) fn sample<const N: usize>(
         value: V::splat([0.0; 3]),
         pdf: F::splat(0.0),
     };
-    if !lanes {
-        // The environment's samples in lanes where it is a map sampled by importance (the
-        // choice between it and the area emitters as emitters::sample makes it); the others
-        // lane after lane.
-        let env = environment::map(g);
-        let mut to_env = [false; N];
+    // The lanes that sample the environment, and u[0] rescaled for the others.
+    let mut to_env = [false; N];
+    let mut u0 = u[0];
+    if let Some(e) = g.environment.first() {
         for l in 0..N {
-            to_env[l] = want[l] && env.is_some_and(|e| f.num_emitters == 0 || u[0].0[l] < e.select_prob);
+            to_env[l] = want[l] && (f.num_emitters == 0 || u[0].0[l] < e.select_prob);
         }
-        let (xr, mut dir, mut value) = (x.rows(), [[0.0f32; N]; 3], [[0.0f32; N]; 3]);
-        let mut on = [false; N];
-        for l in 0..N {
-            if !want[l] || to_env[l] {
-                continue;
-            }
-            let p = V3::new(xr[0][l], xr[1][l], xr[2][l]);
-            if let Some(ls) = emitters::sample(g, f, p, [u[0].0[l], u[1].0[l], u[2].0[l]]) {
-                on[l] = true;
-                for a in 0..3 {
-                    dir[a][l] = ls.dir[a];
-                    value[a][l] = ls.value[a];
-                }
-                out.dist.0[l] = ls.dist;
-                out.pdf.0[l] = ls.pdf;
-            }
-        }
-        (out.on, out.dir, out.value) = (M::from_bools(&on), V::from_rows(&dir), V::from_rows(&value));
-        if let Some(e) = env.filter(|_| to_env.contains(&true)) {
-            let (env_on, dir, value, pdf) = environment::sample(g, e, u[1], u[2], to_env);
-            out.on = out.on | env_on;
-            out.dir = env_on.select_v(dir, out.dir);
-            out.value = env_on.select_v(value, out.value);
-            out.pdf = env_on.select(pdf, out.pdf);
-            out.dist = env_on.select(F::splat(f32::MAX), out.dist);
-        }
-        return out;
+        u0 = (u[0] - F::splat(e.select_prob)) / F::splat(1.0 - e.select_prob);
     }
-    if f.num_emitters == 0 {
-        return out;
+    let map = environment::map(g);
+    // Lane after lane: the lanes left to the scalar routine (it makes the same choice).
+    let (xr, mut dir, mut value) = (x.rows(), [[0.0f32; N]; 3], [[0.0f32; N]; 3]);
+    let mut on = [false; N];
+    let mut to_area = [false; N];
+    for l in 0..N {
+        if !want[l] || (to_env[l] && map.is_some()) {
+            continue;
+        }
+        if lanes && !to_env[l] {
+            to_area[l] = f.num_emitters > 0;
+            continue;
+        }
+        let p = V3::new(xr[0][l], xr[1][l], xr[2][l]);
+        if let Some(ls) = emitters::sample(g, f, p, [u[0].0[l], u[1].0[l], u[2].0[l]]) {
+            on[l] = true;
+            for a in 0..3 {
+                dir[a][l] = ls.dir[a];
+                value[a][l] = ls.value[a];
+            }
+            out.dist.0[l] = ls.dist;
+            out.pdf.0[l] = ls.pdf;
+        }
     }
-    // Lane after lane: the emitter (emitters::select), its shape and its material.
+    (out.on, out.dir, out.value) = (M::from_bools(&on), V::from_rows(&dir), V::from_rows(&value));
+    if let Some(e) = map.filter(|_| to_env.contains(&true)) {
+        let (env_on, dir, value, pdf) = environment::sample(g, e, u[1], u[2], to_env);
+        out.on = out.on | env_on;
+        out.dir = env_on.select_v(dir, out.dir);
+        out.value = env_on.select_v(value, out.value);
+        out.pdf = env_on.select(pdf, out.pdf);
+        out.dist = env_on.select(F::splat(f32::MAX), out.dist);
+    }
+    if to_area.contains(&true) {
+        let area = area(g, f, x, [u0, u[1], u[2]], to_area);
+        out.on = out.on | area.on;
+        out.dir = area.on.select_v(area.dir, out.dir);
+        out.value = area.on.select_v(area.value, out.value);
+        out.pdf = area.on.select(area.pdf, out.pdf);
+        out.dist = area.on.select(area.dist, out.dist);
+    }
+    out
+}
+
+/// The area emitters' samples of [`emitters::sample`] in the lanes of `want`, `u[0]` already
+/// rescaled where an environment competes, for emitters without emission textures.
+#[inline(always)]
+fn area<const N: usize>(g: &FlatScene, f: &FrameParams, x: V<N>, u: [F<N>; 3], want: [bool; N]) -> Samples<N> {
+    let mut out = Samples {
+        on: M([0; N]),
+        dir: V::splat([0.0; 3]),
+        dist: F::splat(0.0),
+        value: V::splat([0.0; 3]),
+        pdf: F::splat(0.0),
+    };
+    // The emitters (emitters::select, every lane stepping together); lane after lane, their
+    // shapes and materials.
     let table = &g.emitters[..f.num_emitters as usize];
+    let chosen = select(table, u[0]);
     let mut corner = [[0.0f32; N]; 9];
     let mut sphere = [false; N];
     let mut flags = [0u32; N];
@@ -105,7 +134,7 @@ pub(super) fn sample<const N: usize>(
         if !want[l] {
             continue;
         }
-        let r = PrimRef(table[emitters::select(table, u[0].0[l])].source);
+        let r = PrimRef(table[chosen[l]].source);
         let material = if r.kind() == PrimKind::Triangle {
             let t = &g.triangles[r.index()];
             for (j, c) in t.va.iter().chain(&t.vb).chain(&t.vc).enumerate() {
@@ -161,4 +190,71 @@ pub(super) fn sample<const N: usize>(
     out.value = radiance.div(pdf);
     out.pdf = pdf;
     out
+}
+
+/// [`emitters::select`] in every lane: the number of the table's first `len − 1` entries
+/// whose cdf is at most u (a prefix, the cdf never falling), which is the first entry whose cdf
+/// exceeds u, or the last. Its halving steps depend on the table's length only, so all lanes
+/// take each together and their loads overlap, where one search's would wait on each other.
+#[inline(always)]
+fn select<const N: usize>(table: &[crate::layout::GpuEmitter], u: F<N>) -> [usize; N] {
+    let mut base = [0usize; N];
+    let mut n = table.len() - 1;
+    if n == 0 {
+        return base;
+    }
+    while n > 1 {
+        let half = n / 2;
+        for l in 0..N {
+            let m = base[l] + half;
+            base[l] = if table[m].cdf <= u.0[l] { m } else { base[l] };
+        }
+        n -= half;
+    }
+    for l in 0..N {
+        base[l] += (table[base[l]].cdf <= u.0[l]) as usize;
+    }
+    base
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layout::GpuEmitter;
+    use crate::render::sampler::Sampler;
+
+    /// The lanes' emitter choice is emitters::select's, for tables of every length up to 40
+    /// (ties of zero-power emitters among them) and numbers on and between the cdf's steps.
+    #[test]
+    fn lanes_select_as_emitters_select() {
+        let mut rng = Sampler::new(7, 8, 9);
+        for len in 1..=40usize {
+            let mut cdf = 0.0f32;
+            let table: Vec<GpuEmitter> = (0..len)
+                .map(|k| {
+                    // Every fourth emitter has no power: its cdf repeats the one before.
+                    if k % 4 != 3 {
+                        cdf += 0.1 + rng.next_f32();
+                    }
+                    GpuEmitter { cdf, ..Default::default() }
+                })
+                .collect();
+            let total = table[len - 1].cdf;
+            let mut table = table;
+            for e in &mut table {
+                e.cdf /= total;
+            }
+            let mut us: Vec<f32> = table.iter().map(|e| e.cdf).collect();
+            us.extend([0.0, 0.999_999_94, 1.0]);
+            us.extend((0..64).map(|_| rng.next_f32()));
+            for chunk in us.chunks(8) {
+                let mut u = [0.0f32; 8];
+                u[..chunk.len()].copy_from_slice(chunk);
+                let got = select::<8>(&table, F(u));
+                for l in 0..8 {
+                    assert_eq!(got[l], emitters::select(&table, u[l]), "len {len}, u {}", u[l]);
+                }
+            }
+        }
+    }
 }
