@@ -531,6 +531,18 @@ pub fn prefetch<T>(p: &T) {
     prefetch_address((p as *const T).cast());
 }
 
+/// Asks for every cache line `p` spans.
+#[inline(always)]
+pub fn prefetch_all<T>(p: &T) {
+    let start: *const u8 = (p as *const T).cast();
+    let size = std::mem::size_of::<T>();
+    for offset in (0..size).step_by(64) {
+        prefetch_address(start.wrapping_add(offset));
+    }
+    // The last line, where the object does not start on a line's first byte.
+    prefetch_address(start.wrapping_add(size.saturating_sub(1)));
+}
+
 /// Asks for the cache line holding `p`, which need not point into anything: a prefetch never
 /// faults, so no address is read or written.
 #[inline(always)]

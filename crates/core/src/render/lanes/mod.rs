@@ -76,47 +76,53 @@ pub enum Walk {
 pub(super) const RAYS: usize = 0;
 pub(super) const SHADOWS: usize = 1;
 
-/// Which walk serves each kind of ray faster here, measured once per render (shared by its
-/// threads through [`Facts`]): the first batches alternate the two walks and time them, until
-/// each has walked [`Choice::ENOUGH`] rays; the faster per ray is kept. The rays after the
-/// camera's are timed with their shading, which makes the hit records the one-ray walk hands
-/// over; the shadow rays with adding their light. Bundles pay where rays of different
-/// directions still meet the same nodes and quadrics (the seed scene); where they part in a
-/// large mesh, each ray alone, with several in flight hiding the memory latency, is faster.
-/// Both walks find the same hits, so the choice changes the time only, never the image.
+/// Which walk serves each kind of ray faster here, measured throughout the render (shared by
+/// its threads through [`Facts`]): until each walk has walked [`Choice::ENOUGH`] rays of a
+/// kind, the batches alternate the two walks and time them; after that, two batches in
+/// [`Choice::EVERY`] go on doing so, and the others take the walk faster per ray so far.
+/// Measuring throughout, not only at the start, matters: the first batches are the image's
+/// top rows, whose rays need not be like the rest's (the textured glTF under a map: its first
+/// 4096 shadow rays walked faster as bundles, the whole image's 1.6 times faster one at a
+/// time). The rays after the camera's are timed with their shading, which makes the hit
+/// records the one-ray walk hands over; the shadow rays with adding their light. Bundles pay
+/// where rays of different directions still meet the same nodes and quadrics (the seed
+/// scene); where they part in a large mesh, each ray alone, with several in flight hiding
+/// the memory latency, is faster. Both walks find the same hits, so the choice changes the
+/// time only, never the image.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Choice {
     /// Per kind and walk: time and rays measured.
     spent: [[Duration; 2]; 2],
     rays: [[usize; 2]; 2],
-    decided: [Option<Walk>; 2],
+    /// The walk every ray after the camera's takes, unmeasured (for tests and comparisons).
+    forced: Option<Walk>,
 }
 
 impl Choice {
     const ENOUGH: usize = 4096;
+    const EVERY: u32 = 8;
 
-    /// Decided for both kinds where `walk` is given, else to be measured.
+    /// `walk` for every ray where given, else measured.
     fn forced(walk: Option<Walk>) -> Self {
-        Self { decided: [walk, walk], ..Self::default() }
+        Self { forced: walk, ..Self::default() }
     }
 
-    pub(super) fn decided(&self, kind: usize) -> bool {
-        self.decided[kind].is_some()
-    }
-
-    /// The walk for rays of `kind` in batch `batch`.
-    pub(super) fn walk(&self, kind: usize, batch: u32) -> Walk {
-        self.decided[kind].unwrap_or(if batch.is_multiple_of(2) { Walk::Bundles } else { Walk::OneRay })
+    /// The walk for rays of `kind` in batch `batch`, and whether it is to be timed.
+    pub(super) fn walk(&self, kind: usize, batch: u32) -> (Walk, bool) {
+        if let Some(w) = self.forced {
+            return (w, false);
+        }
+        if self.rays[kind].iter().any(|&r| r < Self::ENOUGH) || batch % Self::EVERY < 2 {
+            return (if batch.is_multiple_of(2) { Walk::Bundles } else { Walk::OneRay }, true);
+        }
+        let per_ray = |w: usize| self.spent[kind][w].as_secs_f64() / self.rays[kind][w] as f64;
+        (if per_ray(0) <= per_ray(1) { Walk::Bundles } else { Walk::OneRay }, false)
     }
 
     pub(super) fn record(&mut self, kind: usize, walk: Walk, spent: Duration, rays: usize) {
         let w = walk as usize;
         self.spent[kind][w] += spent;
         self.rays[kind][w] += rays;
-        if self.rays[kind].iter().all(|&r| r >= Self::ENOUGH) {
-            let per_ray = |w: usize| self.spent[kind][w].as_secs_f64() / self.rays[kind][w] as f64;
-            self.decided[kind] = Some(if per_ray(0) <= per_ray(1) { Walk::Bundles } else { Walk::OneRay });
-        }
     }
 }
 
@@ -135,8 +141,8 @@ pub struct Tracer<'f> {
     one_rays: Vec<Ray<f32>>,
     one_hits: Vec<Option<Hit<f32>>>,
     nearest: Vec<Nearest<f32>>,
-    /// How rays after the camera's walk the tree: this tracer's copy of `facts.choice` once
-    /// that is decided.
+    /// How rays after the camera's walk the tree: this tracer's copy of `facts.choice`, taken
+    /// at each batch.
     choice: Choice,
     /// Batches traced (the choice alternates the walks while it measures).
     batches: u32,
@@ -287,19 +293,39 @@ impl<'f> Tracer<'f> {
         })
     }
 
-    /// Takes the render's choice of walks where this tracer has none yet.
-    #[inline]
-    fn sync_choice(&mut self) {
-        if !(self.choice.decided(RAYS) && self.choice.decided(SHADOWS)) {
-            self.choice = self.facts.walks();
-        }
-    }
-
     /// Path `i` has ended: its radiance (0 where not finite) goes to its slot.
     #[inline(always)]
     fn finish(&mut self, i: usize) {
         let c = self.paths.sum(i);
         self.slots[self.paths.slot[i] as usize].1 = if c.is_finite() { c } else { V3::zero() };
+    }
+
+    /// Orders the round's `live` paths so that those whose rays hit something come first,
+    /// their hits (and the one-ray walk's records, where `records`) moving with them: bundles
+    /// then hold hits only or misses only, and a bundle of misses is shaded by the little that
+    /// a miss needs (in an open scene half the rays leave it; in mixed bundles their lanes
+    /// waited on the surface shading). The order of paths in a batch does not matter: each
+    /// knows its slot.
+    fn hits_first(&mut self, live: usize, records: bool) {
+        let (mut i, mut end) = (0, live);
+        loop {
+            while i < end && self.nearest[i].found {
+                i += 1;
+            }
+            while end > i && !self.nearest[end - 1].found {
+                end -= 1;
+            }
+            if end <= i {
+                break;
+            }
+            end -= 1;
+            self.paths.swap(i, end);
+            self.nearest.swap(i, end);
+            if records {
+                self.one_hits.swap(i, end);
+            }
+            i += 1;
+        }
     }
 
     /// Traces the batch's paths to their ends; each path's radiance goes to its slot.
@@ -310,52 +336,64 @@ impl<'f> Tracer<'f> {
         let batch = self.batches;
         self.batches += 1;
         let mut camera = true;
+        self.choice = self.facts.walks();
         while self.paths.len > 0 {
             let mut t = self.clock();
             self.shadow.clear();
             let live = self.paths.len;
             // Camera rays walk as bundles; later rays as the choice says.
-            self.sync_choice();
-            let walk = if camera { Walk::Bundles } else { self.choice.walk(RAYS, batch) };
+            let (walk, timed) = if camera { (Walk::Bundles, false) } else { self.choice.walk(RAYS, batch) };
             // Measured: the walk and the shading of the round, which takes the one-ray walk's
             // hit records and makes them itself after bundles.
-            let measuring = (!camera && !self.choice.decided(RAYS)).then(Instant::now);
-            if walk == Walk::OneRay {
-                self.one_rays.clear();
-                self.one_rays.extend((0..live).map(|i| self.paths.ray(i)));
-                self.one_hits.clear();
-                self.one_hits.resize(live, None);
-                wide_traverse::nearest_many(
-                    inp.wide,
-                    inp.prims,
-                    &self.one_rays,
-                    0.0,
-                    f32::INFINITY,
-                    &mut self.one_hits,
-                );
-                self.nearest.clear();
-                self.nearest.extend(self.one_hits.iter().map(|h| match h {
-                    Some(h) => Nearest { t: h.t, prim_ref: h.prim_ref, part: h.part, found: true },
-                    None => Nearest::new(f32::INFINITY),
-                }));
-                t = Self::lap(t, &mut times.trace);
-            }
+            let measuring = timed.then(Instant::now);
+            // The round's hits first, so that the shading of one bundle can ask for the next
+            // one's primitives ahead (shade::prefetch).
+            self.nearest.clear();
+            let records = match walk {
+                Walk::OneRay => {
+                    self.one_rays.clear();
+                    self.one_rays.extend((0..live).map(|i| self.paths.ray(i)));
+                    self.one_hits.clear();
+                    self.one_hits.resize(live, None);
+                    wide_traverse::nearest_many(
+                        inp.wide,
+                        inp.prims,
+                        &self.one_rays,
+                        0.0,
+                        f32::INFINITY,
+                        &mut self.one_hits,
+                    );
+                    self.nearest.extend(self.one_hits.iter().map(|h| match h {
+                        Some(h) => Nearest { t: h.t, prim_ref: h.prim_ref, part: h.part, found: true },
+                        None => Nearest::new(f32::INFINITY),
+                    }));
+                    true
+                }
+                Walk::Bundles => {
+                    for k in (0..live).step_by(N) {
+                        let n = N.min(live - k);
+                        // The lanes past n hold other paths' rays (the arrays are padded): not
+                        // read.
+                        for a in 0..3 {
+                            rays.o[a][..N].copy_from_slice(&self.paths.o[a][k..k + N]);
+                            rays.d[a][..N].copy_from_slice(&self.paths.d[a][k..k + N]);
+                        }
+                        bundle::nearest_lanes(self.isa, inp.wide, inp.prims, &rays, n, &mut self.hits);
+                        self.nearest.extend_from_slice(&self.hits[..n]);
+                    }
+                    false
+                }
+            };
+            t = Self::lap(t, &mut times.trace);
+            self.hits_first(live, records);
+            shade::prefetch(inp, &self.nearest[..N.min(live)]);
             let mut k = 0;
             while k < live {
                 let n = N.min(live - k);
-                if walk == Walk::Bundles {
-                    // The lanes past n hold other paths' rays (the arrays are padded): not read.
-                    for a in 0..3 {
-                        rays.o[a][..N].copy_from_slice(&self.paths.o[a][k..k + N]);
-                        rays.d[a][..N].copy_from_slice(&self.paths.d[a][k..k + N]);
-                    }
-                    bundle::nearest_lanes(self.isa, inp.wide, inp.prims, &rays, n, &mut self.hits);
-                    t = Self::lap(t, &mut times.trace);
-                }
-                let (hits, records) = match walk {
-                    Walk::Bundles => (&self.hits[..], None),
-                    Walk::OneRay => (&self.nearest[k..], Some(&self.one_hits[k..])),
-                };
+                let ahead = (k + N).min(live)..(k + 2 * N).min(live);
+                shade::prefetch(inp, &self.nearest[ahead]);
+                let hits = &self.nearest[k..];
+                let records = records.then(|| &self.one_hits[k..]);
                 // (Called directly, not through a pointer: inlined here, in the ISA's code.)
                 let (p, more, shadow) = (&mut self.paths, &mut self.more, &mut self.shadow);
                 if self.facts.rich {
@@ -371,8 +409,8 @@ impl<'f> Tracer<'f> {
             }
             camera = false;
             // Shadow rays: each unblocked one adds its light to its path.
-            let walk = self.choice.walk(SHADOWS, batch);
-            let start = (!self.choice.decided(SHADOWS)).then(Instant::now);
+            let (walk, timed) = self.choice.walk(SHADOWS, batch);
+            let start = timed.then(Instant::now);
             for chunk in self.shadow.chunks(N) {
                 let blocked = match walk {
                     Walk::Bundles => {

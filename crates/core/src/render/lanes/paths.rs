@@ -88,6 +88,22 @@ impl Paths {
         self.rng[i] = rng.state();
     }
 
+    /// Exchanges paths `i` and `j`.
+    #[inline]
+    pub fn swap(&mut self, i: usize, j: usize) {
+        for a in 0..3 {
+            self.o[a].swap(i, j);
+            self.d[a].swap(i, j);
+            self.beta[a].swap(i, j);
+            self.sum[a].swap(i, j);
+        }
+        self.pdf.swap(i, j);
+        self.seg.swap(i, j);
+        self.specular.swap(i, j);
+        self.rng.swap(i, j);
+        self.slot.swap(i, j);
+    }
+
     /// Moves path `from` to entry `to`, for compaction.
     #[inline]
     pub fn move_path(&mut self, from: usize, to: usize) {

@@ -17,6 +17,7 @@ use super::lights;
 use super::paths::Paths;
 use super::pbr::{self, basis, schlick};
 use super::surface as lane_surface;
+use crate::accel::wide::prefetch_all;
 use crate::layout::{
     ATTR_COLORS, ATTR_NORMALS, FlatScene, LIGHT_STAND_IN, MATERIAL_ALPHA, MATERIAL_TWO_SIDED, MATERIAL_UNLIT,
     TEXTURE_NEAREST,
@@ -47,7 +48,7 @@ pub struct Facts {
     /// scene without them is shaded by code compiled without them (the Cornell box 0.555 s
     /// against 0.58 s with them compiled in).
     pub rich: bool,
-    /// The render's choice of walks, measured by its first batches.
+    /// The render's choice of walks, measured as it goes.
     choice: std::sync::Mutex<super::Choice>,
 }
 
@@ -146,9 +147,28 @@ impl Facts {
 
     /// Adds a measurement of `walk` for rays of `kind` to the render's choice.
     pub(super) fn record_walk(&self, kind: usize, walk: super::Walk, spent: std::time::Duration, rays: usize) {
-        let mut c = self.choice.lock().unwrap_or_else(|e| e.into_inner());
-        if !c.decided(kind) {
-            c.record(kind, walk, spent, rays);
+        self.choice.lock().unwrap_or_else(|e| e.into_inner()).record(kind, walk, spent, rays);
+    }
+}
+
+/// Asks for what [`shade`] reads of the primitives `hits` met (their tags and shapes, and a
+/// triangle's corners and attributes), ahead of it: in a large mesh each is a cache miss,
+/// and the shading's loop over the lanes would wait for them one after the other.
+#[inline(always)]
+pub(super) fn prefetch(inp: &ShadeInputs, hits: &[Nearest<f32>]) {
+    let (g, prims) = (inp.gpu, inp.prims);
+    for h in hits.iter().filter(|h| h.found) {
+        let i = h.prim_ref.index();
+        match h.prim_ref.kind() {
+            PrimKind::Triangle => {
+                prefetch_all(&prims.triangles[i]);
+                if let (Some(t), Some(a)) = (g.triangles.get(i), g.triangle_attrs.get(i)) {
+                    prefetch_all(t);
+                    prefetch_all(a);
+                }
+            }
+            PrimKind::Sphere => prefetch_all(&prims.spheres[i]),
+            _ => {}
         }
     }
 }
@@ -388,6 +408,20 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
     let emit = M::from_bools(&emits) & cos_l.gt(zero);
     let s_hit = emit.select_v(s_emit, sum);
     sum = (alive & hit_m).select_v(s_hit, (alive & !hit_m).select_v(s_miss, sum));
+    if !is_hit.contains(&true) {
+        // Misses only (or paths past their depth): no lane scatters, so each ends with its
+        // sum, its random stream untouched; what follows would change nothing.
+        for (a, s) in [sum.x, sum.y, sum.z].into_iter().enumerate() {
+            let old = F::<N>::load(&p.sum[a], k);
+            p.sum[a][k..k + N].copy_from_slice(&on_m.select(s, old).0);
+        }
+        for l in 0..n_lanes {
+            if on[l] {
+                more[k + l] = false;
+            }
+        }
+        return;
+    }
     // The six numbers of the light and BSDF samples.
     let cont = alive & hit_m & !seg.eq(U::splat(f.max_depth));
     let mut u = [F::splat(0.0); 6];
