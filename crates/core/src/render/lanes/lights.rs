@@ -25,6 +25,20 @@ pub(super) struct Samples<const N: usize> {
     pub pdf: F<N>,
 }
 
+impl<const N: usize> Samples<N> {
+    /// No sample in any lane.
+    #[inline(always)]
+    fn none() -> Self {
+        Self {
+            on: M([0; N]),
+            dir: V::splat([0.0; 3]),
+            dist: F::splat(0.0),
+            value: V::splat([0.0; 3]),
+            pdf: F::splat(0.0),
+        }
+    }
+}
+
 /// Whether [`sample`] computes the area lights' samples itself: no emitter has an emission
 /// texture.
 pub(super) fn in_lanes(g: &FlatScene) -> bool {
@@ -51,13 +65,7 @@ pub(super) fn sample<const N: usize>(
     u: [F<N>; 3],
     want: [bool; N],
 ) -> Samples<N> {
-    let mut out = Samples {
-        on: M([0; N]),
-        dir: V::splat([0.0; 3]),
-        dist: F::splat(0.0),
-        value: V::splat([0.0; 3]),
-        pdf: F::splat(0.0),
-    };
+    let mut out = Samples::none();
     // The lanes that sample the environment, and u[0] rescaled for the others.
     let mut to_env = [false; N];
     let mut u0 = u[0];
@@ -115,13 +123,7 @@ pub(super) fn sample<const N: usize>(
 /// rescaled where an environment competes, for emitters without emission textures.
 #[inline(always)]
 fn area<const N: usize>(g: &FlatScene, f: &FrameParams, x: V<N>, u: [F<N>; 3], want: [bool; N]) -> Samples<N> {
-    let mut out = Samples {
-        on: M([0; N]),
-        dir: V::splat([0.0; 3]),
-        dist: F::splat(0.0),
-        value: V::splat([0.0; 3]),
-        pdf: F::splat(0.0),
-    };
+    let mut out = Samples::none();
     // The emitters (emitters::select, every lane stepping together); lane after lane, their
     // shapes and materials.
     let table = &g.emitters[..f.num_emitters as usize];
