@@ -1,7 +1,8 @@
 //! Light samples in lanes: [`emitters::sample`] for every lane at once. The choice between
 //! the environment and the area emitters is made in lanes; the environment map's samples are
 //! drawn in lanes ([`environment::sample`]); where the scene's emitters have no emission
-//! texture, the emitter is chosen lane after lane and the point on it and the sample's value
+//! texture, the emitter is chosen by halving steps all lanes take together ([`select`]), its
+//! shape and material are read lane after lane, and the point on it and the sample's value
 //! are computed in lanes, by its operations. Elsewhere each lane calls [`emitters::sample`]
 //! itself.
 
@@ -11,7 +12,7 @@
 
 use super::environment;
 use super::lane::{F, M, U, V};
-use crate::layout::{FlatScene, FrameParams, MATERIAL_TWO_SIDED};
+use crate::layout::{FlatScene, FrameParams, GpuEmitter, MATERIAL_TWO_SIDED};
 use crate::math::V3;
 use crate::primitives::{PrimKind, PrimRef};
 use crate::render::emitters;
@@ -199,7 +200,7 @@ fn area<const N: usize>(g: &FlatScene, f: &FrameParams, x: V<N>, u: [F<N>; 3], w
 /// exceeds u, or the last. Its halving steps depend on the table's length only, so all lanes
 /// take each together and their loads overlap, where one search's would wait on each other.
 #[inline(always)]
-fn select<const N: usize>(table: &[crate::layout::GpuEmitter], u: F<N>) -> [usize; N] {
+fn select<const N: usize>(table: &[GpuEmitter], u: F<N>) -> [usize; N] {
     let mut base = [0usize; N];
     let mut n = table.len() - 1;
     if n == 0 {
@@ -222,7 +223,6 @@ fn select<const N: usize>(table: &[crate::layout::GpuEmitter], u: F<N>) -> [usiz
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::layout::GpuEmitter;
     use crate::render::sampler::Sampler;
 
     /// The lanes' emitter choice is emitters::select's, for tables of every length up to 40

@@ -1,11 +1,11 @@
 //! The lane path tracer: the CPU backend's path tracing, many paths at a time.
 //!
 //! A batch holds the samples of a few neighbouring pixels, one path each, field by field
-//! ([`paths`]). Every round traces the rays of the batch's live paths a bundle at a time
-//! ([`crate::accel::bundle`]: 16 lanes with AVX-512, 8 with AVX2, 4 elsewhere), shades their
-//! vertices a bundle at a time ([`shade`]), traces the shadow rays of next-event estimation a
-//! bundle at a time, and moves the live paths together, so that bundles stay full while
-//! paths end.
+//! ([`paths`]). Every round walks the rays of the batch's live paths (as bundles,
+//! [`crate::accel::bundle`]: 16 lanes with AVX-512, 8 with AVX2, 4 elsewhere, or one at a
+//! time, as [`Choice`] measures faster), puts the paths whose rays hit first, shades their
+//! vertices a bundle at a time ([`shade`]), traces the shadow rays of next-event estimation,
+//! and moves the live paths together, so that bundles stay full while paths end.
 //!
 //! Every path performs the operations of [`super::path::radiance`] in the same order (the
 //! bundle walk's hits are the one-ray walk's, bit for bit, and the shading lanes compute what

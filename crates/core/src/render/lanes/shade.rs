@@ -409,11 +409,11 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
     let s_hit = emit.select_v(s_emit, sum);
     sum = (alive & hit_m).select_v(s_hit, (alive & !hit_m).select_v(s_miss, sum));
     if !is_hit.contains(&true) {
-        // Misses only (or paths past their depth): no lane scatters, so each ends with its
-        // sum, its random stream untouched; what follows would change nothing.
+        // No lane shaded here met a surface (misses only; the one-path code has shaded the
+        // others): none scatters, so each ends with its sum, its random stream untouched;
+        // what follows would change nothing.
         for (a, s) in [sum.x, sum.y, sum.z].into_iter().enumerate() {
-            let old = F::<N>::load(&p.sum[a], k);
-            p.sum[a][k..k + N].copy_from_slice(&on_m.select(s, old).0);
+            put(&mut p.sum[a], k, s, on_m);
         }
         for l in 0..n_lanes {
             if on[l] {
