@@ -10,6 +10,7 @@
 // instructions.
 #![allow(clippy::needless_range_loop)]
 
+use super::guide::Guides;
 use super::lane::{F, M, V};
 use super::surface::sample_rgba;
 use crate::layout::{ENV_MAP, ENV_UNIFORM, FlatScene, GpuEnvironment, TEXTURE_NEAREST};
@@ -120,20 +121,28 @@ fn find_cells<const N: usize>(table: &[f32], base: [usize; N], len: usize, u: F<
 pub(super) fn sample<const N: usize>(
     g: &FlatScene,
     e: &GpuEnvironment,
+    guides: &Guides,
     u1: F<N>,
     u2: F<N>,
     want: [bool; N],
 ) -> (M<N>, V<N>, V<N>, F<N>) {
     let (w, h) = (e.width as usize, e.height as usize);
     let marginal = &g.env_distribution[..h + 1];
-    // The row, then the column, by their distributions, every lane at once (each lane's
-    // search in range whatever its number).
-    let js = find_cells(&g.env_distribution, [0; N], h + 1, u1);
-    let mut base = [0usize; N];
-    for l in 0..N {
-        base[l] = h + 1 + js[l] * (w + 1);
+    // The row, then the column, by their guides or the distributions' halving, every lane at
+    // once (each lane's search in range whatever its number).
+    let (js, is, base);
+    match &guides.env {
+        Some((rows, columns)) if rows.len() + 1 == h && columns.len() + 1 == w => {
+            js = rows.count([0; N], u1);
+            is = columns.count(js, u2);
+            base = js.map(|j| h + 1 + j * (w + 1));
+        }
+        _ => {
+            js = find_cells(&g.env_distribution, [0; N], h + 1, u1);
+            base = js.map(|j| h + 1 + j * (w + 1));
+            is = find_cells(&g.env_distribution, base, w + 1, u2);
+        }
     }
-    let is = find_cells(&g.env_distribution, base, w + 1, u2);
     let (mut ij, mut lo, mut width) = ([[0.0f32; N]; 2], [[0.0f32; N]; 2], [[1.0f32; N]; 2]);
     let mut p = [0.0f32; N];
     for l in 0..N {
@@ -200,6 +209,9 @@ mod tests {
         g.environment = vec![e];
         g.env_distribution = d;
         let e = map(&g).expect("a map sampled by importance");
+        // Every other round by the guides, the others by the halving searches.
+        let (guided, unguided) = (Guides::new(&g), Guides::default());
+        assert!(guided.env.is_some());
         let f = FrameParams::default();
         let mut rng = Sampler::new(1, 2, 3);
         let mut sampled = 0;
@@ -207,7 +219,8 @@ mod tests {
             let u1 = F(std::array::from_fn(|_| rng.next_f32()));
             let u2 = F(std::array::from_fn(|_| rng.next_f32()));
             let want: [bool; N] = std::array::from_fn(|l| (l + round) % 5 != 0);
-            let (on, dir, value, p) = sample(&g, e, u1, u2, want);
+            let guides = if round % 2 == 0 { &guided } else { &unguided };
+            let (on, dir, value, p) = sample(&g, e, guides, u1, u2, want);
             for l in 0..N {
                 let s = environment::sample(&g, &f, u1.0[l], u2.0[l]).filter(|_| want[l]);
                 let got = on.lane(l).then(|| (lane(dir, l), lane(value, l), p.0[l].to_bits()));

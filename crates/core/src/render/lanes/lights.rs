@@ -11,6 +11,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::environment;
+use super::guide::Guides;
 use super::lane::{F, M, U, V};
 use crate::layout::{FlatScene, FrameParams, GpuEmitter, MATERIAL_TWO_SIDED};
 use crate::math::V3;
@@ -62,6 +63,7 @@ pub(super) fn sample<const N: usize>(
     g: &FlatScene,
     f: &FrameParams,
     lanes: bool,
+    guides: &Guides,
     x: V<N>,
     u: [F<N>; 3],
     want: [bool; N],
@@ -102,7 +104,7 @@ pub(super) fn sample<const N: usize>(
     }
     (out.on, out.dir, out.value) = (M::from_bools(&on), V::from_rows(&dir), V::from_rows(&value));
     if let Some(e) = map.filter(|_| to_env.contains(&true)) {
-        let (env_on, dir, value, pdf) = environment::sample(g, e, u[1], u[2], to_env);
+        let (env_on, dir, value, pdf) = environment::sample(g, e, guides, u[1], u[2], to_env);
         out.on = out.on | env_on;
         out.dir = env_on.select_v(dir, out.dir);
         out.value = env_on.select_v(value, out.value);
@@ -110,7 +112,7 @@ pub(super) fn sample<const N: usize>(
         out.dist = env_on.select(F::splat(f32::MAX), out.dist);
     }
     if to_area.contains(&true) {
-        let area = area(g, f, x, [u0, u[1], u[2]], to_area);
+        let area = area(g, f, guides, x, [u0, u[1], u[2]], to_area);
         out.on = out.on | area.on;
         out.dir = area.on.select_v(area.dir, out.dir);
         out.value = area.on.select_v(area.value, out.value);
@@ -123,12 +125,22 @@ pub(super) fn sample<const N: usize>(
 /// The area emitters' samples of [`emitters::sample`] in the lanes of `want`, `u[0]` already
 /// rescaled where an environment competes, for emitters without emission textures.
 #[inline(always)]
-fn area<const N: usize>(g: &FlatScene, f: &FrameParams, x: V<N>, u: [F<N>; 3], want: [bool; N]) -> Samples<N> {
+fn area<const N: usize>(
+    g: &FlatScene,
+    f: &FrameParams,
+    guides: &Guides,
+    x: V<N>,
+    u: [F<N>; 3],
+    want: [bool; N],
+) -> Samples<N> {
     let mut out = Samples::none();
-    // The emitters (emitters::select, every lane stepping together); lane after lane, their
-    // shapes and materials.
+    // The emitters (emitters::select, by its guide or every lane halving together); lane
+    // after lane, their shapes and materials.
     let table = &g.emitters[..f.num_emitters as usize];
-    let chosen = select(table, u[0]);
+    let chosen = match &guides.emitters {
+        Some(guide) if guide.len() + 1 == table.len() => guide.count([0; N], u[0]),
+        _ => select(table, u[0]),
+    };
     let mut corner = [[0.0f32; N]; 9];
     let mut sphere = [false; N];
     let mut flags = [0u32; N];
@@ -196,8 +208,8 @@ fn area<const N: usize>(g: &FlatScene, f: &FrameParams, x: V<N>, u: [F<N>; 3], w
 }
 
 /// [`emitters::select`] in every lane: the number of the table's first `len − 1` entries
-/// whose cdf is at most u (a prefix, the cdf never falling), which is the first entry whose cdf
-/// exceeds u, or the last. Its halving steps depend on the table's length only, so all lanes
+/// whose cdf u is not below (a prefix, the cdf never falling), which is the first entry whose
+/// cdf exceeds u, or the last (for a NaN u, the last, as there). Its halving steps depend on the table's length only, so all lanes
 /// take each together and their loads overlap, where one search's would wait on each other.
 #[inline(always)]
 fn select<const N: usize>(table: &[GpuEmitter], u: F<N>) -> [usize; N] {
@@ -210,12 +222,12 @@ fn select<const N: usize>(table: &[GpuEmitter], u: F<N>) -> [usize; N] {
         let half = n / 2;
         for l in 0..N {
             let m = base[l] + half;
-            base[l] = if table[m].cdf <= u.0[l] { m } else { base[l] };
+            base[l] = if u.0[l] < table[m].cdf { base[l] } else { m };
         }
         n -= half;
     }
     for l in 0..N {
-        base[l] += (table[base[l]].cdf <= u.0[l]) as usize;
+        base[l] += !(u.0[l] < table[base[l]].cdf) as usize;
     }
     base
 }
@@ -225,8 +237,9 @@ mod tests {
     use super::*;
     use crate::render::sampler::Sampler;
 
-    /// The lanes' emitter choice is emitters::select's, for tables of every length up to 40
-    /// (ties of zero-power emitters among them) and numbers on and between the cdf's steps.
+    /// The lanes' emitter choice, by halving and by the guide, is emitters::select's, for
+    /// tables of every length up to 40 (ties of zero-power emitters among them) and numbers on
+    /// and between the cdf's steps, below 0, at and above 1, and NaN.
     #[test]
     fn lanes_select_as_emitters_select() {
         let mut rng = Sampler::new(7, 8, 9);
@@ -247,14 +260,20 @@ mod tests {
                 e.cdf /= total;
             }
             let mut us: Vec<f32> = table.iter().map(|e| e.cdf).collect();
-            us.extend([0.0, 0.999_999_94, 1.0]);
+            us.extend([0.0, 0.999_999_94, 1.0, -1.0, 1.5, f32::NAN]);
             us.extend((0..64).map(|_| rng.next_f32()));
+            let g = FlatScene { emitters: table.clone(), ..FlatScene::default() };
+            let guides = Guides::new(&g);
+            let guide = guides.emitters.as_ref().expect("a guide");
             for chunk in us.chunks(8) {
                 let mut u = [0.0f32; 8];
                 u[..chunk.len()].copy_from_slice(chunk);
-                let got = select::<8>(&table, F(u));
+                let halved = select::<8>(&table, F(u));
+                let guided = guide.count([0; 8], F(u));
                 for l in 0..8 {
-                    assert_eq!(got[l], emitters::select(&table, u[l]), "len {len}, u {}", u[l]);
+                    let want = emitters::select(&table, u[l]);
+                    assert_eq!(halved[l], want, "len {len}, u {}", u[l]);
+                    assert_eq!(guided[l], want, "len {len}, u {} (guided)", u[l]);
                 }
             }
         }

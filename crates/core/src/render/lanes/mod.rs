@@ -15,6 +15,7 @@
 
 mod camera;
 mod environment;
+mod guide;
 mod lane;
 mod lights;
 mod paths;

@@ -12,6 +12,7 @@
 //! shaded by [`path::shade_vertex`] itself.
 
 use super::environment as lane_env;
+use super::guide::Guides;
 use super::lane::{F, M, U, V};
 use super::lights;
 use super::paths::Paths;
@@ -44,6 +45,8 @@ pub struct Facts {
     pub materials: Vec<Option<Material>>,
     /// Area lights are sampled in lanes ([`lights::in_lanes`]).
     pub lights_in_lanes: bool,
+    /// The guides of the searches that pick an emitter and an environment map's cell.
+    pub(super) guides: Guides,
     /// The lanes shade pbr materials, textures, vertex normals or an environment here: a
     /// scene without them is shaded by code compiled without them (the Cornell box 0.555 s
     /// against 0.58 s with them compiled in).
@@ -136,6 +139,7 @@ impl Facts {
             rich,
             materials,
             lights_in_lanes: lights::in_lanes(g),
+            guides: Guides::new(g),
             choice: std::sync::Mutex::new(super::Choice::forced(walk)),
         }
     }
@@ -438,7 +442,7 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
     for l in 0..N {
         want[l] = on[l] && cont.lane(l) && nee_kind.lane(l);
     }
-    let ls = lights::sample(g, f, facts.lights_in_lanes, x, [u[0], u[1], u[2]], want);
+    let ls = lights::sample(g, f, facts.lights_in_lanes, &facts.guides, x, [u[0], u[1], u[2]], want);
     // Lane after lane: the shading normal of interpolated normals (surface::shading_frame);
     // the face's elsewhere, which is what shading_frame gives there for every material (its
     // mirrors' and pbr surfaces' reflecting_normal keeps a normal that is the face's).
