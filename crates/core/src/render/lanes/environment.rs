@@ -1,10 +1,11 @@
 //! The environment map in lanes: `background`, `pdf` and `sample` of
 //! [`crate::render::environment`] for a map sampled by importance, by their operations in their
-//! order, so every lane computes what the scalar routines compute, bit for bit. The
-//! texels are fetched lane after lane; the rest, the distributions' searches (a step of all
-//! lanes at a time) and the angles' sines, cosines and arc tangents included ([`crate::math::sin_cos_turns`],
-//! [`crate::math::atan2`], [`crate::math::acos`]), runs over the lanes. A constant sky, or a
-//! map sampled uniformly, is left to the scalar routines.
+//! order, so every lane computes what the scalar routines compute, bit for bit. The texels are
+//! fetched lane after lane; the rest runs over the lanes: the distributions' searches (through
+//! their guide tables, [`super::guide`], or by halving, a step of all lanes at a time) and the
+//! angles' sines, cosines and arc tangents ([`crate::math::sin_cos_turns`],
+//! [`crate::math::atan2`], [`crate::math::acos`]). A constant sky, or a map sampled uniformly,
+//! is left to the scalar routines.
 
 // Lane loops index several arrays with the lane: the form the compiler turns into vector
 // instructions.

@@ -1,8 +1,9 @@
 //! Light samples in lanes: [`emitters::sample`] for every lane at once. The choice between
 //! the environment and the area emitters is made in lanes; the environment map's samples are
 //! drawn in lanes ([`environment::sample`]); where the scene's emitters have no emission
-//! texture, the emitter is chosen by halving steps all lanes take together ([`select`]), its
-//! shape and material are read lane after lane, and the point on it and the sample's value
+//! texture, the emitter is chosen through its guide table ([`super::guide`]; without one, by
+//! halving steps all lanes take together, [`select`]), its shape and material are read lane
+//! after lane, and the point on it and the sample's value
 //! are computed in lanes, by its operations. Elsewhere each lane calls [`emitters::sample`]
 //! itself.
 
@@ -209,8 +210,9 @@ fn area<const N: usize>(
 
 /// [`emitters::select`] in every lane: the number of the table's first `len − 1` entries
 /// whose cdf u is not below (a prefix, the cdf never falling), which is the first entry whose
-/// cdf exceeds u, or the last (for a NaN u, the last, as there). Its halving steps depend on the table's length only, so all lanes
-/// take each together and their loads overlap, where one search's would wait on each other.
+/// cdf exceeds u, or the last (for a NaN u, the last, as there). Its halving steps depend on
+/// the table's length only, so all lanes take each together and their loads overlap, where one
+/// search's would wait on each other. (The choice where the table has no guide.)
 #[inline(always)]
 fn select<const N: usize>(table: &[GpuEmitter], u: F<N>) -> [usize; N] {
     let mut base = [0usize; N];
