@@ -211,7 +211,7 @@ mod tests {
         g.env_distribution = d;
         let e = map(&g).expect("a map sampled by importance");
         // Every other round by the guides, the others by the halving searches.
-        let (guided, unguided) = (Guides::new(&g), Guides::default());
+        let (guided, unguided) = (Guides::new(&g, Some(e)), Guides::default());
         assert!(guided.env.is_some());
         let f = FrameParams::default();
         let mut rng = Sampler::new(1, 2, 3);

@@ -27,7 +27,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::lane::F;
-use crate::layout::FlatScene;
+use crate::layout::{FlatScene, GpuEnvironment};
 
 /// The guides of a scene's distributions, made once per render.
 #[derive(Clone, Debug, Default)]
@@ -40,10 +40,12 @@ pub(super) struct Guides {
 }
 
 impl Guides {
-    pub fn new(g: &FlatScene) -> Self {
+    /// The guides of `g`'s emitters and of `env`, its environment map where the lanes sample
+    /// it ([`super::environment::map`]).
+    pub fn new(g: &FlatScene, env: Option<&GpuEnvironment>) -> Self {
         let emitters =
             (!g.emitters.is_empty()).then(|| Guide::new(1, g.emitters.len() - 1, |_, i| g.emitters[i].cdf)).flatten();
-        let env = super::environment::map(g).and_then(|e| {
+        let env = env.and_then(|e| {
             let (w, h) = (e.width as usize, e.height as usize);
             let d = &g.env_distribution;
             if w == 0 || h == 0 || d.len() < h + 1 + h * (w + 1) {

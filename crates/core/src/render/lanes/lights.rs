@@ -265,7 +265,7 @@ mod tests {
             us.extend([0.0, 0.999_999_94, 1.0, -1.0, 1.5, f32::NAN]);
             us.extend((0..64).map(|_| rng.next_f32()));
             let g = FlatScene { emitters: table.clone(), ..FlatScene::default() };
-            let guides = Guides::new(&g);
+            let guides = Guides::new(&g, None);
             let guide = guides.emitters.as_ref().expect("a guide");
             for chunk in us.chunks(8) {
                 let mut u = [0.0f32; 8];

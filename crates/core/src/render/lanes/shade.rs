@@ -139,7 +139,7 @@ impl Facts {
             rich,
             materials,
             lights_in_lanes: lights::in_lanes(g),
-            guides: Guides::new(g),
+            guides: Guides::new(g, lane_env::map(g)),
             choice: std::sync::Mutex::new(super::Choice::forced(walk)),
         }
     }
