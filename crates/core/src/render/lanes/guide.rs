@@ -73,8 +73,9 @@ pub(super) struct Guide {
 
 impl Guide {
     /// The guide of `tables` tables of `len` values each (non-decreasing within each),
-    /// `value(t, i)` being table t's entry i; None where a value is not a number (the scalar
-    /// searches' answers then need not be a count) or the tables are too long to count in u32.
+    /// `value(t, i)` being table t's entry i; None where a value is not a number or a table
+    /// falls (the scalar searches' answers then need not be a count), or where the tables are
+    /// too long to count in u32.
     pub(super) fn new(tables: usize, len: usize, value: impl Fn(usize, usize) -> f32) -> Option<Self> {
         if tables.saturating_mul(len) >= u32::MAX as usize / 2 {
             return None;

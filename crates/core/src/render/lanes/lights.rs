@@ -3,9 +3,8 @@
 //! drawn in lanes ([`environment::sample`]); where the scene's emitters have no emission
 //! texture, the emitter is chosen through its guide table ([`super::guide`]; without one, by
 //! halving steps all lanes take together, [`select`]), its shape and material are read lane
-//! after lane, and the point on it and the sample's value
-//! are computed in lanes, by its operations. Elsewhere each lane calls [`emitters::sample`]
-//! itself.
+//! after lane, and the point on it and the sample's value are computed in lanes, by its
+//! operations. Elsewhere each lane calls [`emitters::sample`] itself.
 
 // Lane loops index several arrays with the lane: the form the compiler turns into vector
 // instructions.
