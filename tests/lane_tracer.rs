@@ -237,3 +237,35 @@ fn lanes_equal_the_one_by_one_tracer_on_a_textured_gltf_under_a_map() {
     assert!(facts.lanes_ok && facts.rich && !prep.gpu.environment.is_empty() && !prep.gpu.triangle_attrs.is_empty());
     check("pbr.toml", &prep, 40, 30, 6, 3);
 }
+
+/// Whitted with the camera rays walked as bundles (`render/lanes/whitted.rs`) gives the image
+/// of one ray tree at a time, bit for bit, with every lane set, on every shipped scene (point
+/// and area lights, glass, mirrors), the golden scenes (textures, an environment map) and the
+/// textured glTF; rows and sample counts that leave bundles part full.
+#[test]
+fn whitted_with_bundled_camera_rays_equals_one_ray_at_a_time() {
+    let render = |prep: &Prepared, w: u32, h: u32, spp: u32, tracer: PathTracer| {
+        let mut frame = prep.frame(w, h);
+        frame.spp = spp;
+        let img = cpu::render_region_with(prep, &frame, RenderMode::Whitted, Region::whole(w, h), tracer, &|_| {});
+        img.pixels.iter().map(|p| p.map(f32::to_bits)).collect::<Vec<_>>()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let mut scenes = common::shipped_scenes();
+    scenes.extend(["cornell.toml", "textured.toml"].map(|s| root().join("tests/golden").join(s)));
+    scenes.push(pbr_scene(dir.path()));
+    let (mut pixels, mut lit) = (0, 0);
+    for path in &scenes {
+        let prep = prepared(path);
+        let want = render(&prep, 37, 23, 3, PathTracer::OneByOne);
+        for isa in Isa::available() {
+            let got = render(&prep, 37, 23, 3, PathTracer::Lanes(isa));
+            let differ = want.iter().zip(&got).filter(|(a, b)| a != b).count();
+            assert_eq!(differ, 0, "{}: {differ} pixels differ with {isa:?}", path.display());
+        }
+        pixels += want.len();
+        lit += want.iter().filter(|p| p.iter().any(|&c| f32::from_bits(c) > 0.0)).count();
+    }
+    // The images are not black: the comparison judged the ray trees' light.
+    assert!(lit * 2 > pixels, "only {lit} of {pixels} pixels lit");
+}

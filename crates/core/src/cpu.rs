@@ -11,7 +11,9 @@ use rayon::prelude::*;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Which CPU path tracer renders path mode. Both give the same image, bit for bit.
+/// Which CPU tracer renders: path mode many paths at a time or one at a time, and Whitted mode
+/// with its camera rays in bundles of the same lanes ([`lanes::whitted`]) or one ray at a
+/// time. Each pair gives the same image, bit for bit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PathTracer {
     /// Many paths at a time, their rays in bundles of SIMD lanes ([`crate::render::lanes`]):
@@ -149,6 +151,12 @@ fn render_region_timed(
                     progress(done.fetch_add(1, Ordering::Relaxed) + 1);
                 },
             );
+        }
+        (RenderMode::Whitted, Some((isa, _))) => {
+            rows.for_each(|(dy, row)| {
+                lanes::whitted::row(isa, &inputs, region.y0 + dy as u32, region.x0, row);
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+            });
         }
         _ => {
             let shade_pixel = match mode {

@@ -13,7 +13,7 @@ use super::{pbr, surface};
 use crate::accel::{WideBvh, wide_traverse};
 use crate::layout::{FlatScene, FrameParams, GpuLight, GpuMaterial, LIGHT_POINT, MATERIAL_ALPHA};
 use crate::math::{Ray, V3};
-use crate::primitives::Primitives;
+use crate::primitives::{Hit, Primitives};
 use crate::scene::MaterialKind;
 
 /// Depth of the explicit ray stack. A dielectric hit pushes two rays; when the stack is full
@@ -126,6 +126,14 @@ fn light_at(light: &GpuLight, p: V3<f32>) -> (V3<f32>, f32, V3<f32>) {
 
 /// Radiance along a primary ray.
 pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
+    radiance_from(inp, ray, None)
+}
+
+/// [`radiance`] along a primary ray whose nearest hit is `first` where given (found by a
+/// walk of several rays at once, [`super::lanes::whitted`]): the ray tree goes on from it as
+/// from the hit [`radiance`]'s own walk would find.
+pub fn radiance_from(inp: &ShadeInputs, ray: Ray<f32>, first: Option<Option<Hit<f32>>>) -> V3<f32> {
+    let mut first = first;
     let mut stack = [Pending { ray, weight: V3::zero(), depth: 0 }; WHITTED_STACK];
     stack[0].weight = V3::splat(1.0);
     let mut sp = 1usize;
@@ -134,7 +142,11 @@ pub fn radiance(inp: &ShadeInputs, ray: Ray<f32>) -> V3<f32> {
     while sp > 0 {
         sp -= 1;
         let Pending { ray, weight, depth } = stack[sp];
-        let Some(hit) = wide_traverse::nearest(inp.wide, inp.prims, &ray, 0.0, f32::INFINITY) else {
+        let found = match first.take() {
+            Some(hit) => hit,
+            None => wide_traverse::nearest(inp.wide, inp.prims, &ray, 0.0, f32::INFINITY),
+        };
+        let Some(hit) = found else {
             color += weight.mul_elem(environment::background(inp.gpu, inp.frame, ray.dir));
             continue;
         };

@@ -12,6 +12,8 @@
 //! [`super::path::shade_vertex`] computes), and each pixel adds its samples in sample order,
 //! so the image equals the one-path-at-a-time tracer's ([`super::path`]) bit for bit;
 //! `tests/path_tracing.rs` checks it.
+//!
+//! Whitted mode takes the bundles for its camera rays only ([`whitted`]).
 
 mod camera;
 mod environment;
@@ -22,6 +24,7 @@ mod paths;
 mod pbr;
 mod shade;
 mod surface;
+pub mod whitted;
 
 use super::path::NeeRay;
 use super::shade::ShadeInputs;
