@@ -228,7 +228,7 @@ fn find_cell(cdf: &[f32], u: f32) -> usize {
 }
 
 /// Density of the map's distribution at cell (i, j), over (u, v) ∈ [0, 1]².
-#[inline]
+#[inline(always)]
 pub(crate) fn cell_pdf(g: &FlatScene, e: &GpuEnvironment, i: usize, j: usize) -> f32 {
     let (w, h) = (e.width as usize, e.height as usize);
     let marginal = &g.env_distribution[..h + 1];

@@ -129,7 +129,7 @@ pub(crate) fn wrap_index(i: i32, n: i32, mode: u32) -> i32 {
 }
 
 /// Texel (x, y) of texture `t`: linear RGB and alpha (1 for radiance maps).
-#[inline]
+#[inline(always)]
 pub(crate) fn texel(texels: &[u32], t: &GpuTexture, x: i32, y: i32) -> [f32; 4] {
     let i = y as u32 * t.width + x as u32;
     if t.flags & TEXTURE_LINEAR_RGB != 0 {
