@@ -20,34 +20,39 @@ fn prepared(path: &Path) -> Prepared {
     Prepared::new(Scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())))
 }
 
-/// Renders `prep` in path mode at `w`×`h`, `spp` samples from sample `base`, with `tracer`;
-/// the pixels' bits.
-fn bits(prep: &Prepared, w: u32, h: u32, spp: u32, base: u32, tracer: PathTracer) -> Vec<[u32; 3]> {
+/// Renders `prep` in `mode` at `w`×`h`, `spp` samples from sample `base`, with `tracer`; the
+/// pixels' bits.
+fn bits(prep: &Prepared, mode: RenderMode, w: u32, h: u32, spp: u32, base: u32, tracer: PathTracer) -> Vec<[u32; 3]> {
     let mut frame = prep.frame(w, h);
     frame.spp = spp;
     frame.sample_base = base;
     frame.seed = 7;
-    let img = cpu::render_region_with(prep, &frame, RenderMode::Path, Region::whole(w, h), tracer, &|_| {});
+    let img = cpu::render_region_with(prep, &frame, mode, Region::whole(w, h), tracer, &|_| {});
     img.pixels.iter().map(|p| p.map(f32::to_bits)).collect()
+}
+
+/// How many of the pixels `bits` are lit (some channel above 0).
+fn lit(bits: &[[u32; 3]]) -> usize {
+    bits.iter().filter(|p| p.iter().any(|&c| f32::from_bits(c) > 0.0)).count()
 }
 
 /// Every lane set gives the one-by-one image, bit for bit; returns the pixels compared.
 fn check(name: &str, prep: &Prepared, w: u32, h: u32, spp: u32, base: u32) -> usize {
-    let want = bits(prep, w, h, spp, base, PathTracer::OneByOne);
+    let want = bits(prep, RenderMode::Path, w, h, spp, base, PathTracer::OneByOne);
     for isa in Isa::available() {
         for tracer in [
             PathTracer::Lanes(isa),
             PathTracer::LanesWalking(isa, Walk::Bundles),
             PathTracer::LanesWalking(isa, Walk::OneRay),
         ] {
-            let got = bits(prep, w, h, spp, base, tracer);
+            let got = bits(prep, RenderMode::Path, w, h, spp, base, tracer);
             let differ = want.iter().zip(&got).filter(|(a, b)| a != b).count();
             assert_eq!(differ, 0, "{name} ({w}x{h}, {spp} spp from {base}): {differ} pixels differ with {tracer:?}");
         }
     }
     // The image is not black: the comparison judged light transport.
-    let lit = want.iter().filter(|p| p.iter().any(|&c| f32::from_bits(c) > 0.0)).count();
-    assert!(lit * 4 > want.len(), "{name}: only {lit} of {} pixels lit", want.len());
+    let n_lit = lit(&want);
+    assert!(n_lit * 4 > want.len(), "{name}: only {n_lit} of {} pixels lit", want.len());
     want.len()
 }
 
@@ -244,28 +249,22 @@ fn lanes_equal_the_one_by_one_tracer_on_a_textured_gltf_under_a_map() {
 /// textured glTF; rows and sample counts that leave bundles part full.
 #[test]
 fn whitted_with_bundled_camera_rays_equals_one_ray_at_a_time() {
-    let render = |prep: &Prepared, w: u32, h: u32, spp: u32, tracer: PathTracer| {
-        let mut frame = prep.frame(w, h);
-        frame.spp = spp;
-        let img = cpu::render_region_with(prep, &frame, RenderMode::Whitted, Region::whole(w, h), tracer, &|_| {});
-        img.pixels.iter().map(|p| p.map(f32::to_bits)).collect::<Vec<_>>()
-    };
     let dir = tempfile::tempdir().unwrap();
     let mut scenes = common::shipped_scenes();
     scenes.extend(["cornell.toml", "textured.toml"].map(|s| root().join("tests/golden").join(s)));
     scenes.push(pbr_scene(dir.path()));
-    let (mut pixels, mut lit) = (0, 0);
+    let (mut pixels, mut lit_pixels) = (0, 0);
     for path in &scenes {
         let prep = prepared(path);
-        let want = render(&prep, 37, 23, 3, PathTracer::OneByOne);
+        let want = bits(&prep, RenderMode::Whitted, 37, 23, 3, 0, PathTracer::OneByOne);
         for isa in Isa::available() {
-            let got = render(&prep, 37, 23, 3, PathTracer::Lanes(isa));
+            let got = bits(&prep, RenderMode::Whitted, 37, 23, 3, 0, PathTracer::Lanes(isa));
             let differ = want.iter().zip(&got).filter(|(a, b)| a != b).count();
             assert_eq!(differ, 0, "{}: {differ} pixels differ with {isa:?}", path.display());
         }
         pixels += want.len();
-        lit += want.iter().filter(|p| p.iter().any(|&c| f32::from_bits(c) > 0.0)).count();
+        lit_pixels += lit(&want);
     }
     // The images are not black: the comparison judged the ray trees' light.
-    assert!(lit * 2 > pixels, "only {lit} of {pixels} pixels lit");
+    assert!(lit_pixels * 2 > pixels, "only {lit_pixels} of {pixels} pixels lit");
 }
