@@ -85,9 +85,8 @@ pub(super) const SHADOWS: usize = 1;
 /// kind, the batches alternate the two walks and time them; after that, two batches in
 /// [`Choice::EVERY`] go on doing so (in [`Choice::EVERY_CLEAR`] where one walk has taken
 /// [`Choice::CLEAR`] times the other's time per ray so far), and the others take the walk
-/// faster per ray so far. Each timed batch walks half its time the slower way, so a clear
-/// choice is checked less often: on the Cornell box, two batches in eight spent about 6 % of
-/// the render walking rays the slower way.
+/// faster per ray so far. One of each two timed batches walks the slower way, so a clear
+/// choice is checked less often (the gain is in the book's performance chapter).
 /// Measuring throughout, not only at the start, matters: the first batches are the image's
 /// top rows, whose rays need not be like the rest's (the textured glTF under a map: its first
 /// 4096 shadow rays walked faster as bundles, the whole image's 1.6 times faster one at a
