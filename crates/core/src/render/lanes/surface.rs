@@ -11,8 +11,6 @@
 use super::lane::{F, M, U, V};
 use super::pbr::clamp01;
 use crate::layout::{ATTR_NORMALS, FlatScene, TEXTURE_UV1, TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT};
-use crate::math::V3;
-use crate::render::surface::decode_octahedral;
 use crate::render::texture::{texel, wrap_index};
 use crate::scene::texture::Wrap;
 
@@ -129,10 +127,11 @@ pub(super) fn sample_rgba<const N: usize>(g: &FlatScene, texture: [Option<u32>; 
 }
 
 /// The shading normals of `surface::surface` from the vertex normals, in lanes `on` whose
-/// triangle `tri[l]` has them, at weights `w`; `n` (the face normal) elsewhere.
+/// triangle `tri[l]` has them, at weights `w`; `n` (the face normal) elsewhere. The normals'
+/// codes are read lane after lane and decoded in lanes.
 #[inline(always)]
 pub(super) fn normals<const N: usize>(g: &FlatScene, on: [bool; N], tri: [u32; N], w: [F<N>; 3], n: V<N>) -> V<N> {
-    let mut k = [[[0.0f32; N]; 3]; 3];
+    let mut code = [[0u32; N]; 3];
     let mut smooth = [false; N];
     for l in 0..N {
         if !on[l] {
@@ -143,15 +142,61 @@ pub(super) fn normals<const N: usize>(g: &FlatScene, on: [bool; N], tri: [u32; N
             continue;
         }
         smooth[l] = true;
-        for (j, code) in a.normal.iter().enumerate() {
-            let d: V3<f32> = decode_octahedral(*code);
-            (k[j][0][l], k[j][1][l], k[j][2][l]) = (d.x, d.y, d.z);
+        for j in 0..3 {
+            code[j][l] = a.normal[j];
         }
     }
-    let vert = |j: usize| V::from_rows(&k[j]);
+    let vert = |j: usize| decode_octahedral(U(code[j]));
     let v = (vert(0).scale(w[0]) + vert(1).scale(w[1]) + vert(2).scale(w[2])).normalize();
     let one = F::splat(1.0);
     let unit = v.x.abs().le(one) & v.y.abs().le(one) & v.z.abs().le(one);
     let flipped = v.dot(n).lt(F::splat(0.0)).select_v(-v, v);
     (M::from_bools(&smooth) & unit).select_v(flipped, n)
+}
+
+/// [`crate::render::surface::decode_octahedral`] in every lane, by its operations.
+#[inline(always)]
+fn decode_octahedral<const N: usize>(w: U<N>) -> V<N> {
+    let snorm = |h: U<N>| {
+        let mut r = [0.0f32; N];
+        for l in 0..N {
+            r[l] = (h.0[l] as u16 as i16) as f32;
+        }
+        (F(r) / F::splat(32767.0)).max(F::splat(-1.0))
+    };
+    let (x, y) = (snorm(w), snorm(w >> U::splat(16)));
+    let zero = F::splat(0.0);
+    let z = F::splat(1.0) - x.abs() - y.abs();
+    let t = (-z).max(zero);
+    let sx = x.ge(zero).select(-t, t);
+    let sy = y.ge(zero).select(-t, t);
+    V::new(x + sx, y + sy, z)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::sampler::Sampler;
+    use crate::render::surface;
+
+    /// The lanes decode every normal code as the scalar routine does, bit for bit: random
+    /// codes, and halves at the ends of the range (−32768 clamps to −1) and at zero.
+    #[test]
+    fn lanes_decode_normals_as_the_scalar_routine() {
+        const N: usize = 16;
+        let mut rng = Sampler::new(8, 9, 10);
+        let ends = [0u32, 1, 0x7fff, 0x8000, 0x8001, 0xffff];
+        let mut codes: Vec<u32> = ends.iter().flat_map(|&a| ends.iter().map(move |&b| a | b << 16)).collect();
+        codes
+            .extend((0..20_000).map(|_| (rng.next_f32() * 65536.0) as u32 | ((rng.next_f32() * 65536.0) as u32) << 16));
+        for chunk in codes.chunks(N) {
+            let mut c = [0u32; N];
+            c[..chunk.len()].copy_from_slice(chunk);
+            let got = decode_octahedral(U(c)).rows();
+            for (l, &code) in c.iter().enumerate() {
+                let want = surface::decode_octahedral(code).to_array().map(f32::to_bits);
+                assert_eq!([got[0][l], got[1][l], got[2][l]].map(f32::to_bits), want, "code {code:#x}");
+            }
+        }
+    }
 }
