@@ -485,6 +485,15 @@ impl<'f> Tracer<'f> {
     }
 }
 
+/// A direction uniform over the sphere, for the lanes' tests.
+#[cfg(test)]
+fn unit_direction(rng: &mut super::sampler::Sampler) -> V3<f32> {
+    let z = 1.0 - 2.0 * rng.next_f32();
+    let phi = 2.0 * std::f32::consts::PI * rng.next_f32();
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    V3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

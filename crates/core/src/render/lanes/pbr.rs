@@ -245,6 +245,7 @@ pub(super) fn samples<const N: usize>(l: &Lobes<N>, cos_o: F<N>) -> M<N> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::unit_direction;
     use super::*;
     use crate::layout::GpuMaterial;
     use crate::math::V3;
@@ -263,13 +264,6 @@ mod tests {
         [x.x.0[l].to_bits(), x.y.0[l].to_bits(), x.z.0[l].to_bits()]
     }
 
-    fn unit(rng: &mut Sampler) -> V3<f32> {
-        let z = 1.0 - 2.0 * rng.next_f32();
-        let phi = 2.0 * PI * rng.next_f32();
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        V3::new(r * phi.cos(), r * phi.sin(), z)
-    }
-
     /// Lobes, eval and sampled directions equal the scalar routines' bit for bit, over random
     /// materials (smooth to rough, metal to dielectric, black to white) and directions,
     /// including directions below the surface.
@@ -285,9 +279,9 @@ mod tests {
                 roughness: rng.next_f32().powi(2) * 1.1,
                 ..Default::default()
             });
-            let ns: [V3<f32>; N] = std::array::from_fn(|_| unit(&mut rng));
-            let wo: [V3<f32>; N] = std::array::from_fn(|_| unit(&mut rng));
-            let wi: [V3<f32>; N] = std::array::from_fn(|_| unit(&mut rng));
+            let ns: [V3<f32>; N] = std::array::from_fn(|_| unit_direction(&mut rng));
+            let wo: [V3<f32>; N] = std::array::from_fn(|_| unit_direction(&mut rng));
+            let wi: [V3<f32>; N] = std::array::from_fn(|_| unit_direction(&mut rng));
             let u: [F<N>; 3] = std::array::from_fn(|_| F(std::array::from_fn(|_| rng.next_f32())));
             let base = v(m.map(|m| V3::from_array(m.color)));
             let (vwo, vwi, vns) = (v(wo), v(wi), v(ns));
@@ -338,9 +332,9 @@ mod tests {
                 roughness: bsdf::MIN_ROUGHNESS + rng.next_f32().powi(2),
                 ..Default::default()
             });
-            let ns: [V3<f32>; N] = std::array::from_fn(|_| unit(&mut rng));
-            let wo: [V3<f32>; N] = std::array::from_fn(|_| unit(&mut rng));
-            let wi: [V3<f32>; N] = std::array::from_fn(|_| unit(&mut rng));
+            let ns: [V3<f32>; N] = std::array::from_fn(|_| unit_direction(&mut rng));
+            let wo: [V3<f32>; N] = std::array::from_fn(|_| unit_direction(&mut rng));
+            let wi: [V3<f32>; N] = std::array::from_fn(|_| unit_direction(&mut rng));
             let u: [F<N>; 2] = std::array::from_fn(|_| F(std::array::from_fn(|_| rng.next_f32())));
             let (alpha, f0) = (F(m.map(|m| m.roughness)), v(m.map(|m| V3::from_array(m.color))));
             let (f_cos, pdf) = conductor_eval(alpha, f0, v(wo), v(wi), v(ns));

@@ -664,6 +664,7 @@ fn fresnel_dielectric<const N: usize>(cos_i: F<N>, eta: F<N>) -> F<N> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::unit_direction;
     use super::*;
     use crate::layout::GpuMaterial;
     use crate::render::sampler::Sampler;
@@ -676,12 +677,6 @@ mod tests {
     #[test]
     fn lanes_shading_normal_equals_shading_frame() {
         let mut rng = Sampler::new(4, 5, 6);
-        let unit = |r: &mut Sampler| {
-            let z = 1.0 - 2.0 * r.next_f32();
-            let phi = 2.0 * std::f32::consts::PI * r.next_f32();
-            let s = (1.0 - z * z).max(0.0).sqrt();
-            V3::new(s * phi.cos(), s * phi.sin(), z)
-        };
         let kinds = [Kind::Lambert, Kind::Mirror, Kind::Glass, Kind::Pbr, Kind::Rough];
         let material = |k: Kind| {
             let kind = match k {
@@ -699,10 +694,10 @@ mod tests {
             let mut cases = Vec::new();
             for l in 0..N {
                 let k = kinds[(rng.next_f32() * 5.0) as usize % 5];
-                let n = unit(&mut rng);
+                let n = unit_direction(&mut rng);
                 // Interpolated normals within about 80 degrees of the face's.
-                let shading = (n + unit(&mut rng) * (1.5 * rng.next_f32())).normalize();
-                let wo = unit(&mut rng);
+                let shading = (n + unit_direction(&mut rng) * (1.5 * rng.next_f32())).normalize();
+                let wo = unit_direction(&mut rng);
                 let f = rng.next_f32() < 0.5;
                 let s = rng.next_f32() < 0.8;
                 (kind[l], front[l], smooth[l]) = (k as u32, f, s);
