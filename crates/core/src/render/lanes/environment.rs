@@ -13,7 +13,8 @@
 
 use super::guide::Guides;
 use super::lane::{F, M, V};
-use super::surface::sample_rgba;
+use super::surface::{sample_one, sample_rgba};
+use super::texels::Texels;
 use crate::layout::{ENV_MAP, ENV_UNIFORM, FlatScene, GpuEnvironment, TEXTURE_NEAREST};
 use crate::render::environment::cell_pdf;
 const PI: f32 = std::f32::consts::PI;
@@ -50,15 +51,24 @@ fn map_uv<const N: usize>(e: &GpuEnvironment, d: V<N>) -> (F<N>, F<N>) {
 
 /// `environment::background` of map `e` along `d`, in the lanes `on`.
 #[inline(always)]
-pub(super) fn radiance<const N: usize>(g: &FlatScene, e: &GpuEnvironment, d: V<N>, on: [bool; N]) -> V<N> {
+pub(super) fn radiance<const N: usize>(
+    g: &FlatScene,
+    texels: &Texels,
+    e: &GpuEnvironment,
+    d: V<N>,
+    on: [bool; N],
+) -> V<N> {
     let (u, v) = map_uv(e, d);
-    at_uv(g, e, u, v, on)
+    at_uv(g, texels, e, u, v, on)
 }
 
 /// The map's radiance at (u, v), in the lanes `on`.
 #[inline(always)]
-fn at_uv<const N: usize>(g: &FlatScene, e: &GpuEnvironment, u: F<N>, v: F<N>, on: [bool; N]) -> V<N> {
-    let c = sample_rgba(g, on.map(|o| o.then_some(e.texture)), u, v);
+fn at_uv<const N: usize>(g: &FlatScene, texels: &Texels, e: &GpuEnvironment, u: F<N>, v: F<N>, on: [bool; N]) -> V<N> {
+    let c = match texels.get(e.texture as usize) {
+        Some(rgba) => sample_one(&g.textures[e.texture as usize], rgba, M::from_bools(&on), u, v),
+        None => sample_rgba(g, texels, on.map(|o| o.then_some(e.texture)), u, v),
+    };
     V::splat(e.radiance).mul_elem(V::new(c[0], c[1], c[2]))
 }
 
@@ -75,12 +85,13 @@ fn density<const N: usize>(e: &GpuEnvironment, p: F<N>, sin_theta: F<N>) -> F<N>
 #[inline(always)]
 pub(super) fn radiance_and_pdf<const N: usize>(
     g: &FlatScene,
+    texels: &Texels,
     e: &GpuEnvironment,
     d: V<N>,
     on: [bool; N],
 ) -> (V<N>, F<N>) {
     let (u, v) = map_uv(e, d);
-    (at_uv(g, e, u, v, on), pdf_at(g, e, d, u, v, on))
+    (at_uv(g, texels, e, u, v, on), pdf_at(g, e, d, u, v, on))
 }
 
 /// `environment::pdf` of map `e` along `d`, at its map coordinates (u, v), in the lanes `on`.
@@ -121,6 +132,7 @@ fn find_cells<const N: usize>(table: &[f32], base: [usize; N], len: usize, u: F<
 #[inline(always)]
 pub(super) fn sample<const N: usize>(
     g: &FlatScene,
+    texels: &Texels,
     e: &GpuEnvironment,
     guides: &Guides,
     u1: F<N>,
@@ -167,7 +179,7 @@ pub(super) fn sample<const N: usize>(
     let dir = from_map(e, m);
     let pdf = density(e, F(p), sin_theta);
     let on = M::from_bools(&want) & !sin_theta.le(F::splat(0.0)) & pdf.gt(F::splat(0.0));
-    let value = radiance(g, e, dir, want).div(pdf);
+    let value = radiance(g, texels, e, dir, want).div(pdf);
     (on, dir, value, pdf)
 }
 
@@ -178,7 +190,7 @@ mod tests {
     use crate::math::V3;
     use crate::render::sampler::Sampler;
     use crate::render::{environment, texture};
-    use crate::scene::texture::{Texels, Texture, Wrap};
+    use crate::scene::texture::{Texels as Image, Texture, Wrap};
     use crate::scene::{EnvSampling, Environment};
 
     const N: usize = 16;
@@ -197,7 +209,7 @@ mod tests {
             .flat_map(|y| (0..w).map(move |x| (x, y)))
             .map(|(x, y)| if (x == 20 || x == 21) && y == 5 { [500.0, 400.0, 300.0] } else { [0.5, 0.6, 0.9] })
             .collect();
-        let t = Texture { wrap: [Wrap::Repeat, Wrap::Clamp], ..Texture::new("m", w, h, Texels::Linear(texels)) };
+        let t = Texture { wrap: [Wrap::Repeat, Wrap::Clamp], ..Texture::new("m", w, h, Image::Linear(texels)) };
         let env = Environment {
             map: Some(t),
             rotation_deg: 30.0,
@@ -210,8 +222,12 @@ mod tests {
         g.environment = vec![e];
         g.env_distribution = d;
         let e = map(&g).expect("a map sampled by importance");
-        // Every other round by the guides, the others by the halving searches.
+        // Every other round by the guides, the others by the halving searches; one round in
+        // three reads the map's packed texels, the others its decoded copy.
         let (guided, unguided) = (Guides::new(&g, Some(e)), Guides::default());
+        let (decoded, packed) =
+            (Texels::new(&g, [e.texture as usize], super::super::texels::BUDGET), Texels::default());
+        assert!(decoded.get(e.texture as usize).is_some());
         assert!(guided.env.is_some());
         let f = FrameParams::default();
         let mut rng = Sampler::new(1, 2, 3);
@@ -221,7 +237,8 @@ mod tests {
             let u2 = F(std::array::from_fn(|_| rng.next_f32()));
             let want: [bool; N] = std::array::from_fn(|l| (l + round) % 5 != 0);
             let guides = if round % 2 == 0 { &guided } else { &unguided };
-            let (on, dir, value, p) = sample(&g, e, guides, u1, u2, want);
+            let tx = if round % 3 == 0 { &packed } else { &decoded };
+            let (on, dir, value, p) = sample(&g, tx, e, guides, u1, u2, want);
             for l in 0..N {
                 let s = environment::sample(&g, &f, u1.0[l], u2.0[l]).filter(|_| want[l]);
                 let got = on.lane(l).then(|| (lane(dir, l), lane(value, l), p.0[l].to_bits()));
@@ -241,9 +258,9 @@ mod tests {
                 }
             });
             let vd = V::new(F(d.map(|v| v.x)), F(d.map(|v| v.y)), F(d.map(|v| v.z)));
-            let (r, p) = radiance_and_pdf(&g, e, vd, [true; N]);
+            let (r, p) = radiance_and_pdf(&g, tx, e, vd, [true; N]);
             assert_eq!(
-                radiance(&g, e, vd, [true; N]).rows().map(|a| a.map(f32::to_bits)),
+                radiance(&g, tx, e, vd, [true; N]).rows().map(|a| a.map(f32::to_bits)),
                 r.rows().map(|a| a.map(f32::to_bits))
             );
             for l in 0..N {

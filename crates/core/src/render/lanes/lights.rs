@@ -13,6 +13,7 @@
 use super::environment;
 use super::guide::Guides;
 use super::lane::{F, M, U, V};
+use super::texels::Texels;
 use crate::layout::{FlatScene, FrameParams, GpuEmitter, MATERIAL_TWO_SIDED};
 use crate::math::V3;
 use crate::primitives::{PrimKind, PrimRef};
@@ -59,11 +60,13 @@ pub(super) fn in_lanes(g: &FlatScene) -> bool {
 /// environment's samples in lanes where it is a map sampled by importance; the area
 /// emitters' in lanes where `lanes` ([`in_lanes`]). The others lane after lane.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub(super) fn sample<const N: usize>(
     g: &FlatScene,
     f: &FrameParams,
     lanes: bool,
     guides: &Guides,
+    texels: &Texels,
     x: V<N>,
     u: [F<N>; 3],
     want: [bool; N],
@@ -104,7 +107,7 @@ pub(super) fn sample<const N: usize>(
     }
     (out.on, out.dir, out.value) = (M::from_bools(&on), V::from_rows(&dir), V::from_rows(&value));
     if let Some(e) = map.filter(|_| to_env.contains(&true)) {
-        let (env_on, dir, value, pdf) = environment::sample(g, e, guides, u[1], u[2], to_env);
+        let (env_on, dir, value, pdf) = environment::sample(g, texels, e, guides, u[1], u[2], to_env);
         out.on = out.on | env_on;
         out.dir = env_on.select_v(dir, out.dir);
         out.value = env_on.select_v(value, out.value);

@@ -24,6 +24,7 @@ mod paths;
 mod pbr;
 mod shade;
 mod surface;
+mod texels;
 pub mod whitted;
 
 use super::path::NeeRay;

@@ -1,8 +1,9 @@
 //! What rays see where they hit triangles with attributes, in lanes: the barycentric weights,
 //! image texture lookups (bilinear, glTF's wrap modes) and interpolated vertex normals of
 //! [`crate::render::surface::surface`], by its operations in its order, so each lane computes
-//! what the scalar routine computes, bit for bit. Texels are fetched lane after lane; the
-//! arithmetic runs over the lanes.
+//! what the scalar routine computes, bit for bit. Texels are fetched lane after lane (from
+//! their decoded copies where there are, [`super::texels`]) and each lane's four channels
+//! interpolated together; the other arithmetic runs over the lanes.
 
 // Lane loops index several arrays with the lane: the form the compiler turns into vector
 // instructions.
@@ -10,7 +11,8 @@
 
 use super::lane::{F, M, U, V};
 use super::pbr::clamp01;
-use crate::layout::{ATTR_NORMALS, FlatScene, TEXTURE_UV1, TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT};
+use super::texels::Texels;
+use crate::layout::{ATTR_NORMALS, FlatScene, GpuTexture, TEXTURE_UV1, TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT};
 use crate::render::texture::{texel, wrap_index};
 use crate::scene::texture::Wrap;
 
@@ -44,6 +46,7 @@ fn wrap_coord<const N: usize>(u: F<N>, mode: U<N>) -> F<N> {
 #[inline(always)]
 pub(super) fn texture<const N: usize>(
     g: &FlatScene,
+    texels: &Texels,
     on: [bool; N],
     texture: [u32; N],
     tri: [u32; N],
@@ -75,13 +78,41 @@ pub(super) fn texture<const N: usize>(
     let (u0, v0) = (at(0), at(1));
     let u = F(lin[0]) * u0 + F(lin[1]) * v0 + F(off[0]);
     let v = F(lin[2]) * u0 + F(lin[3]) * v0 + F(off[1]);
-    sample_rgba(g, index, u, v)
+    sample_rgba(g, texels, index, u, v)
 }
 
 /// [`crate::render::texture::sample_rgba`], bilinear, in the lanes with a texture
-/// (`texture[l]`: its index in the scene's table) at (u, v); 1 in the others.
+/// (`texture[l]`: its index in the scene's table) at (u, v); 1 in the others. The texel
+/// coordinates and weights are computed in lanes; then each lane reads its four texels (from
+/// the decoded copy, [`Texels`], where there is one) and interpolates their four channels at
+/// once, by `lerp4`'s operations.
 #[inline(always)]
-pub(super) fn sample_rgba<const N: usize>(g: &FlatScene, texture: [Option<u32>; N], u: F<N>, v: F<N>) -> [F<N>; 4] {
+pub(super) fn sample_rgba<const N: usize>(
+    g: &FlatScene,
+    texels: &Texels,
+    texture: [Option<u32>; N],
+    u: F<N>,
+    v: F<N>,
+) -> [F<N>; 4] {
+    // Where every lane with a texture reads one (an environment map, or a bundle's rays on one
+    // surface), its copy: the texel indices are then computed in lanes too.
+    // (1 + the index, 0 for none: the largest is the one texture where there is one.)
+    let mut code = [0u32; N];
+    for l in 0..N {
+        code[l] = texture[l].map_or(0, |i| i.wrapping_add(1));
+    }
+    let top = code.iter().fold(0, |a, &c| a.max(c));
+    let mut others = 0;
+    for l in 0..N {
+        others |= (code[l] != 0 && code[l] != top) as u32;
+    }
+    if let (0, Some(rgba)) = (others, texels.get(top.wrapping_sub(1) as usize)) {
+        let mut has = [false; N];
+        for l in 0..N {
+            has[l] = code[l] != 0;
+        }
+        return sample_one(&g.textures[top as usize - 1], rgba, M::from_bools(&has), u, v);
+    }
     let (mut size, mut wraps) = ([[0.0f32; N]; 2], [[0u32; N]; 2]);
     for l in 0..N {
         let Some(i) = texture[l] else { continue };
@@ -94,8 +125,7 @@ pub(super) fn sample_rgba<const N: usize>(g: &FlatScene, texture: [Option<u32>; 
     let r = wrap_coord(v, U(wraps[1])) * F(size[1]) - F::splat(0.5);
     let (x0, y0) = (s.map(f32::floor), r.map(f32::floor));
     let (fx, fy) = (s - x0, r - y0);
-    // Lane after lane: the four texels.
-    let mut px = [[[0.0f32; N]; 4]; 4];
+    let mut out = [[1.0f32; N]; 4];
     for l in 0..N {
         let Some(i) = texture[l] else { continue };
         let t = &g.textures[i as usize];
@@ -103,27 +133,75 @@ pub(super) fn sample_rgba<const N: usize>(g: &FlatScene, texture: [Option<u32>; 
         let (xa, ya) = (x0.0[l] as i32, y0.0[l] as i32);
         let (xa, xb) = (wrap_index(xa, w, wraps[0][l]), wrap_index(xa + 1, w, wraps[0][l]));
         let (ya, yb) = (wrap_index(ya, h, wraps[1][l]), wrap_index(ya + 1, h, wraps[1][l]));
-        for (j, (x, y)) in [(xa, ya), (xb, ya), (xa, yb), (xb, yb)].into_iter().enumerate() {
-            let c = texel(&g.texels, t, x, y);
-            for k in 0..4 {
-                px[j][k][l] = c[k];
+        let px = match texels.get(i as usize) {
+            Some(rgba) => {
+                let at = |x: i32, y: i32| rgba[(y as u32 * t.width + x as u32) as usize];
+                [at(xa, ya), at(xb, ya), at(xa, yb), at(xb, yb)]
             }
+            None => [(xa, ya), (xb, ya), (xa, yb), (xb, yb)].map(|(x, y)| texel(&g.texels, t, x, y)),
+        };
+        let c = lerp4(lerp4(px[0], px[1], fx.0[l]), lerp4(px[2], px[3], fx.0[l]), fy.0[l]);
+        for k in 0..4 {
+            out[k][l] = c[k];
         }
     }
-    let one = F::splat(1.0);
-    let lerp = |a: F<N>, b: F<N>, t: F<N>| a * (one - t) + b * t;
-    let mut has = [false; N];
+    out.map(F)
+}
+
+/// [`sample_rgba`] in the lanes `on`, which all read texture `t`, whose decoded copy is
+/// `rgba`, by the same operations; 1 in the others.
+#[inline(always)]
+pub(super) fn sample_one<const N: usize>(t: &GpuTexture, rgba: &[[f32; 4]], on: M<N>, u: F<N>, v: F<N>) -> [F<N>; 4] {
+    let (wu, wv) = ((t.flags >> TEXTURE_WRAP_U_SHIFT) & 3, (t.flags >> TEXTURE_WRAP_V_SHIFT) & 3);
+    let s = wrap_coord(u, U::splat(wu)) * F::splat(t.width as f32) - F::splat(0.5);
+    let r = wrap_coord(v, U::splat(wv)) * F::splat(t.height as f32) - F::splat(0.5);
+    let (x0, y0) = (s.map(f32::floor), r.map(f32::floor));
+    let (fx, fy) = (s - x0, r - y0);
+    let (w, h) = (t.width as i32, t.height as i32);
+    let mut at = [[0u32; N]; 4];
     for l in 0..N {
-        has[l] = texture[l].is_some();
+        let (xa, ya) = (x0.0[l] as i32, y0.0[l] as i32);
+        let (xa, xb) = (wrap_index(xa, w, wu), wrap_index(xa + 1, w, wu));
+        let (ya, yb) = (wrap_index(ya, h, wv), wrap_index(ya + 1, h, wv));
+        let (xa, xb, ya, yb) = (xa as u32, xb as u32, ya as u32 * t.width, yb as u32 * t.width);
+        (at[0][l], at[1][l], at[2][l], at[3][l]) = (ya + xa, ya + xb, yb + xa, yb + xb);
     }
-    let has = M::from_bools(&has);
-    let mut out = [one; 4];
-    for (k, c) in out.iter_mut().enumerate() {
-        let top = lerp(F(px[0][k]), F(px[1][k]), fx);
-        let bottom = lerp(F(px[2][k]), F(px[3][k]), fx);
-        *c = has.select(lerp(top, bottom, fy), one);
+    // Every lane reads (the others' indices are in range too, whatever their coordinates);
+    // the lanes off take 1 after.
+    let mut out = [[1.0f32; N]; 4];
+    for l in 0..N {
+        let px = |j: usize| rgba[at[j][l] as usize];
+        let c = lerp4(lerp4(px(0), px(1), fx.0[l]), lerp4(px(2), px(3), fx.0[l]), fy.0[l]);
+        for k in 0..4 {
+            out[k][l] = c[k];
+        }
     }
-    out
+    out.map(|c| on.select(F(c), F::splat(1.0)))
+}
+
+/// `texture::lerp4`: a·(1 − t) + b·t in each channel (on x86-64 the four channels in one
+/// register, which the compiler does not do by itself here).
+#[inline(always)]
+fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE is part of x86-64; the loads and the store touch the four f32 of a, b and r.
+    unsafe {
+        use std::arch::x86_64::*;
+        let (va, vb) = (_mm_loadu_ps(a.as_ptr()), _mm_loadu_ps(b.as_ptr()));
+        let vt = _mm_set1_ps(t);
+        let v = _mm_add_ps(_mm_mul_ps(va, _mm_sub_ps(_mm_set1_ps(1.0), vt)), _mm_mul_ps(vb, vt));
+        let mut r = [0.0f32; 4];
+        _mm_storeu_ps(r.as_mut_ptr(), v);
+        r
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let mut r = [0.0f32; 4];
+        for k in 0..4 {
+            r[k] = a[k] * (1.0 - t) + b[k] * t;
+        }
+        r
+    }
 }
 
 /// The shading normals of `surface::surface` from the vertex normals, in lanes `on` whose
@@ -175,9 +253,100 @@ fn decode_octahedral<const N: usize>(w: U<N>) -> V<N> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::texels;
     use super::*;
     use crate::render::sampler::Sampler;
-    use crate::render::surface;
+    use crate::render::{surface, texture};
+    use crate::scene::texture::{Texels as Image, Texture};
+
+    /// Four textures of every kind of texel and wrap mode: sRGB colour, data, linear RGB,
+    /// and a single texel.
+    fn textures() -> FlatScene {
+        let mut rng = Sampler::new(3, 4, 5);
+        let mut code = || (rng.next_f32() * 256.0) as u8;
+        let rgba = |n: usize, code: &mut dyn FnMut() -> u8| (0..n).map(|_| [code(), code(), code(), code()]).collect();
+        let colour = Texture {
+            wrap: [Wrap::Repeat, Wrap::Mirror],
+            ..Texture::new("colour", 5, 3, Image::Rgba8(rgba(15, &mut code)))
+        };
+        let data = Texture {
+            wrap: [Wrap::Clamp, Wrap::Repeat],
+            data: true,
+            ..Texture::new("data", 4, 4, Image::Rgba8(rgba(16, &mut code)))
+        };
+        let linear = (0..6).map(|i| [i as f32 * 0.7, 1.0 / (i + 1) as f32, 100.0 - i as f32]).collect();
+        let linear =
+            Texture { wrap: [Wrap::Mirror, Wrap::Clamp], ..Texture::new("linear", 3, 2, Image::Linear(linear)) };
+        let single = Texture::new("one", 1, 1, Image::Rgba8(vec![[200, 10, 99, 7]]));
+        let mut g = FlatScene::default();
+        (g.textures, g.texels) = texture::pack([colour, data, linear, single].iter());
+        g
+    }
+
+    /// The lanes' bilinear lookups equal `texture::sample_rgba`'s bit for bit: every kind of
+    /// texel and wrap, coordinates inside, outside, on texel centres and edges, infinite and
+    /// NaN; lanes reading one texture (through its indices in lanes) and several, some none;
+    /// from the decoded copies, from the packed texels, and from a mix of both.
+    #[test]
+    fn lanes_sample_textures_as_the_scalar_routine() {
+        const N: usize = 16;
+        let g = textures();
+        let all = Texels::new(&g, 0..4, texels::BUDGET);
+        // 15 + 16 texels fit, the linear map's 6 do not, the single texel does.
+        let some = Texels::new(&g, 0..4, 15 + 16 + 1);
+        assert!(some.get(0).is_some() && some.get(1).is_some() && some.get(2).is_none() && some.get(3).is_some());
+        let none = Texels::default();
+        let mut rng = Sampler::new(6, 7, 8);
+        let special = [0.0, 1.0, -1.0, 0.5, 0.1, 1.0 / 3.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -0.0, 1e30];
+        for round in 0..3000 {
+            let mut coord = || match rng.next_f32() {
+                x if x < 0.2 => special[(rng.next_f32() * special.len() as f32) as usize % special.len()],
+                _ => rng.next_f32() * 6.0 - 3.0,
+            };
+            let (u, v): ([f32; N], [f32; N]) = (std::array::from_fn(|_| coord()), std::array::from_fn(|_| coord()));
+            let one = (round / 3 % 5) as u32;
+            let texture: [Option<u32>; N] = std::array::from_fn(|l| match round / 3 % 3 {
+                // One texture (or none, one = 4) in most lanes.
+                0 => (l % 7 != 3 && one < 4).then_some(one),
+                1 => (one < 4).then_some(one),
+                // Several.
+                _ => Some((l as u32 + round as u32) % 5).filter(|&i| i < 4),
+            });
+            let copies = [&all, &some, &none][round % 3];
+            let got = sample_rgba(&g, copies, texture, F(u), F(v));
+            for l in 0..N {
+                let want = texture[l]
+                    .map_or([1.0; 4], |i| texture::sample_rgba(&g.texels, &g.textures[i as usize], u[l], v[l]));
+                let got = [got[0].0[l], got[1].0[l], got[2].0[l], got[3].0[l]];
+                // (Any NaN as one: IEEE leaves a NaN's sign and payload to the implementation,
+                // and the compiler may swap a product's operands.)
+                let bits = |c: [f32; 4]| c.map(|x| if x.is_nan() { f32::NAN.to_bits() } else { x.to_bits() });
+                assert_eq!(bits(got), bits(want), "texture {:?} at ({}, {})", texture[l], u[l], v[l]);
+            }
+        }
+    }
+
+    /// A decoded copy holds what `texture::texel` reads, texel for texel; a table past the
+    /// scene's and a repeated number are passed over.
+    #[test]
+    fn copies_hold_the_texels() {
+        let g = textures();
+        let copies = Texels::new(&g, [2, 0, 2, 9, 1, 3], texels::BUDGET);
+        for (i, t) in g.textures.iter().enumerate() {
+            let copy = copies.get(i).expect("a copy");
+            assert_eq!(copy.len(), (t.width * t.height) as usize);
+            for y in 0..t.height as i32 {
+                for x in 0..t.width as i32 {
+                    let want = texture::texel(&g.texels, t, x, y);
+                    assert_eq!(
+                        copy[(y as u32 * t.width + x as u32) as usize].map(f32::to_bits),
+                        want.map(f32::to_bits)
+                    );
+                }
+            }
+        }
+        assert!(copies.get(9).is_none());
+    }
 
     /// The lanes decode every normal code as the scalar routine does, bit for bit: random
     /// codes, and halves at the ends of the range (−32768 clamps to −1) and at zero.
