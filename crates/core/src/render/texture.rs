@@ -146,7 +146,22 @@ pub(crate) fn texel(texels: &[u32], t: &GpuTexture, x: i32, y: i32) -> [f32; 4] 
     [code(0), code(8), code(16), alpha]
 }
 
-fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
+/// a·(1 − t) + b·t in each channel (on x86-64 the four channels in one register, which the
+/// compiler does not do by itself in the lane tracer's loops; the same operations either way).
+#[inline(always)]
+pub(crate) fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE is part of x86-64; the loads and the store touch the four f32 of a, b and r.
+    unsafe {
+        use std::arch::x86_64::*;
+        let (va, vb) = (_mm_loadu_ps(a.as_ptr()), _mm_loadu_ps(b.as_ptr()));
+        let vt = _mm_set1_ps(t);
+        let v = _mm_add_ps(_mm_mul_ps(va, _mm_sub_ps(_mm_set1_ps(1.0), vt)), _mm_mul_ps(vb, vt));
+        let mut r = [0.0f32; 4];
+        _mm_storeu_ps(r.as_mut_ptr(), v);
+        r
+    }
+    #[cfg(not(target_arch = "x86_64"))]
     [0, 1, 2, 3].map(|k| a[k] * (1.0 - t) + b[k] * t)
 }
 

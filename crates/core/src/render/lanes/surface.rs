@@ -13,7 +13,7 @@ use super::lane::{F, M, U, V};
 use super::pbr::clamp01;
 use super::texels::Texels;
 use crate::layout::{ATTR_NORMALS, FlatScene, GpuTexture, TEXTURE_UV1, TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT};
-use crate::render::texture::{texel, wrap_index};
+use crate::render::texture::{lerp4, texel, wrap_index};
 use crate::scene::texture::Wrap;
 
 /// [`crate::render::texture::barycentrics`]: the weights of b and c at `p` in triangles
@@ -85,7 +85,7 @@ pub(super) fn texture<const N: usize>(
 /// (`texture[l]`: its index in the scene's table) at (u, v); 1 in the others. The texel
 /// coordinates and weights are computed in lanes; then each lane reads its four texels (from
 /// the decoded copy, [`Texels`], where there is one) and interpolates their four channels at
-/// once, by `lerp4`'s operations.
+/// once, by [`lerp4`]'s operations.
 #[inline(always)]
 pub(super) fn sample_rgba<const N: usize>(
     g: &FlatScene,
@@ -177,31 +177,6 @@ pub(super) fn sample_one<const N: usize>(t: &GpuTexture, rgba: &[[f32; 4]], on: 
         }
     }
     out.map(|c| on.select(F(c), F::splat(1.0)))
-}
-
-/// `texture::lerp4`: a·(1 − t) + b·t in each channel (on x86-64 the four channels in one
-/// register, which the compiler does not do by itself here).
-#[inline(always)]
-fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: SSE is part of x86-64; the loads and the store touch the four f32 of a, b and r.
-    unsafe {
-        use std::arch::x86_64::*;
-        let (va, vb) = (_mm_loadu_ps(a.as_ptr()), _mm_loadu_ps(b.as_ptr()));
-        let vt = _mm_set1_ps(t);
-        let v = _mm_add_ps(_mm_mul_ps(va, _mm_sub_ps(_mm_set1_ps(1.0), vt)), _mm_mul_ps(vb, vt));
-        let mut r = [0.0f32; 4];
-        _mm_storeu_ps(r.as_mut_ptr(), v);
-        r
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        let mut r = [0.0f32; 4];
-        for k in 0..4 {
-            r[k] = a[k] * (1.0 - t) + b[k] * t;
-        }
-        r
-    }
 }
 
 /// The shading normals of `surface::surface` from the vertex normals, in lanes `on` whose
