@@ -86,25 +86,35 @@ fn density<const N: usize>(e: &GpuEnvironment, p: F<N>, sin_theta: F<N>) -> F<N>
 pub(super) fn radiance_and_pdf<const N: usize>(
     g: &FlatScene,
     texels: &Texels,
+    guides: &Guides,
     e: &GpuEnvironment,
     d: V<N>,
     on: [bool; N],
 ) -> (V<N>, F<N>) {
     let (u, v) = map_uv(e, d);
-    (at_uv(g, texels, e, u, v, on), pdf_at(g, e, d, u, v, on))
+    (at_uv(g, texels, e, u, v, on), pdf_at(g, e, guides, d, u, v, on))
 }
 
 /// `environment::pdf` of map `e` along `d`, at its map coordinates (u, v), in the lanes `on`.
 #[inline(always)]
-fn pdf_at<const N: usize>(g: &FlatScene, e: &GpuEnvironment, d: V<N>, u: F<N>, v: F<N>, on: [bool; N]) -> F<N> {
+fn pdf_at<const N: usize>(
+    g: &FlatScene,
+    e: &GpuEnvironment,
+    guides: &Guides,
+    d: V<N>,
+    u: F<N>,
+    v: F<N>,
+    on: [bool; N],
+) -> F<N> {
     let mut p = [0.0f32; N];
+    let table = &guides.env_pdf;
     for l in 0..N {
         if !on[l] {
             continue;
         }
         let i = ((u.0[l] * e.width as f32) as usize).min(e.width as usize - 1);
         let j = ((v.0[l] * e.height as f32) as usize).min(e.height as usize - 1);
-        p[l] = cell_pdf(g, e, i, j);
+        p[l] = if table.is_empty() { cell_pdf(g, e, i, j) } else { table[j * e.width as usize + i] };
     }
     let m = to_map(e, d);
     let sin_theta = (m.x * m.x + m.z * m.z).sqrt();
@@ -167,7 +177,7 @@ pub(super) fn sample<const N: usize>(
         (ij[0][l], ij[1][l]) = (i as f32, j as f32);
         (lo[0][l], lo[1][l]) = (row[i], marginal[j]);
         (width[0][l], width[1][l]) = (row[i + 1] - row[i], marginal[j + 1] - marginal[j]);
-        p[l] = cell_pdf(g, e, i, j);
+        p[l] = if guides.env_pdf.is_empty() { cell_pdf(g, e, i, j) } else { guides.env_pdf[j * w + i] };
     }
     let dv = (u1 - F(lo[1])) / F(width[1]);
     let du = (u2 - F(lo[0])) / F(width[0]);
@@ -222,13 +232,15 @@ mod tests {
         g.environment = vec![e];
         g.env_distribution = d;
         let e = map(&g).expect("a map sampled by importance");
-        // Every other round by the guides, the others by the halving searches; one round in
-        // three reads the map's packed texels, the others its decoded copy.
+        // Every other round by the guides and the cells' densities computed ahead, the others
+        // by the halving searches and the densities computed where needed; one round in three
+        // reads the map's packed texels, the others its decoded copy.
         let (guided, unguided) = (Guides::new(&g, Some(e)), Guides::default());
         let (decoded, packed) =
             (Texels::new(&g, [e.texture as usize], super::super::texels::BUDGET), Texels::default());
         assert!(decoded.get(e.texture as usize).is_some());
         assert!(guided.env.is_some());
+        assert_eq!(guided.env_pdf.len(), (w * h) as usize);
         let f = FrameParams::default();
         let mut rng = Sampler::new(1, 2, 3);
         let mut sampled = 0;
@@ -258,7 +270,7 @@ mod tests {
                 }
             });
             let vd = V::new(F(d.map(|v| v.x)), F(d.map(|v| v.y)), F(d.map(|v| v.z)));
-            let (r, p) = radiance_and_pdf(&g, tx, e, vd, [true; N]);
+            let (r, p) = radiance_and_pdf(&g, tx, guides, e, vd, [true; N]);
             assert_eq!(
                 radiance(&g, tx, e, vd, [true; N]).rows().map(|a| a.map(f32::to_bits)),
                 r.rows().map(|a| a.map(f32::to_bits))

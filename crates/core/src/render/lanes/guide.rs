@@ -18,9 +18,11 @@
 //!
 //! A halving search between the two starts then finds the count itself. So the answer is the
 //! scalar search's, exactly, whatever the table and whatever u: no rounding enters. With K
-//! about the table's length, the range holds one or two entries on average; ties (a run of
-//! zero-probability entries) only lengthen the search of the bucket they fall in, to its
-//! log₂.
+//! four times the table's length (rounded up to a power of two; once the length only, for
+//! tables of more than 2¹⁶ entries in all, whose starts would then outgrow the caches), most
+//! ranges hold no entry or one, so the lanes, which step together until the last of them is
+//! done, mostly take one step; ties (a run of zero-probability entries) only lengthen the
+//! search of the bucket they fall in, to its log₂.
 
 // Lane loops index several arrays with the lane: the form the compiler turns into vector
 // instructions.
@@ -28,6 +30,7 @@
 
 use super::lane::F;
 use crate::layout::{FlatScene, GpuEnvironment};
+use crate::render::environment::cell_pdf;
 
 /// The guides of a scene's distributions, made once per render.
 #[derive(Clone, Debug, Default)]
@@ -37,6 +40,9 @@ pub(super) struct Guides {
     /// An environment map's rows (the marginal's inner edges) and each row's columns (its
     /// conditional's inner edges): what `environment::find_cell` compares.
     pub env: Option<(Guide, Guide)>,
+    /// The map's cell densities (`environment::cell_pdf`, computed once here), row by row;
+    /// empty without a map.
+    pub env_pdf: Vec<f32>,
 }
 
 impl Guides {
@@ -45,6 +51,15 @@ impl Guides {
     pub fn new(g: &FlatScene, env: Option<&GpuEnvironment>) -> Self {
         let emitters =
             (!g.emitters.is_empty()).then(|| Guide::new(1, g.emitters.len() - 1, |_, i| g.emitters[i].cdf)).flatten();
+        let env_pdf = match env {
+            Some(e)
+                if g.env_distribution.len() >= e.height as usize + 1 + e.height as usize * (e.width as usize + 1) =>
+            {
+                let (w, h) = (e.width as usize, e.height as usize);
+                (0..h).flat_map(|j| (0..w).map(move |i| cell_pdf(g, e, i, j))).collect()
+            }
+            _ => Vec::new(),
+        };
         let env = env.and_then(|e| {
             let (w, h) = (e.width as usize, e.height as usize);
             let d = &g.env_distribution;
@@ -55,9 +70,13 @@ impl Guides {
             let columns = Guide::new(h, w - 1, |j, i| d[h + 1 + j * (w + 1) + 1 + i])?;
             Some((rows, columns))
         });
-        Self { emitters, env }
+        Self { emitters, env, env_pdf }
     }
 }
+
+/// The most entries (all tables together) whose guides get four buckets an entry; larger ones
+/// get one.
+const FINE_UP_TO: usize = 1 << 16;
 
 /// Guide tables of one or more distributions of equal length, back to back.
 #[derive(Clone, Debug)]
@@ -80,7 +99,8 @@ impl Guide {
         if tables.saturating_mul(len) >= u32::MAX as usize / 2 {
             return None;
         }
-        let buckets = len.max(1).next_power_of_two();
+        let fine = if tables * len <= FINE_UP_TO { 4 } else { 1 };
+        let buckets = len.max(1).next_power_of_two() * fine;
         let mut values = Vec::with_capacity(tables * len);
         let mut starts = Vec::with_capacity(tables * (buckets + 2));
         for t in 0..tables {

@@ -114,7 +114,7 @@ pub struct Choice {
 
 impl Choice {
     const ENOUGH: usize = 4096;
-    const EVERY: u32 = 8;
+    const EVERY: u32 = 32;
     const EVERY_CLEAR: u32 = 64;
     const CLEAR: f64 = 1.5;
 
@@ -501,7 +501,7 @@ mod tests {
     use super::*;
 
     /// The batches that time both walks (alternating them) and the walk the others take:
-    /// every batch until both have walked enough rays, then two in eight, or two in 64 where
+    /// every batch until both have walked enough rays, then two in 32, or two in 64 where
     /// one walk is clearly faster; the faster one otherwise, each kind of ray measured apart.
     #[test]
     fn the_choice_times_close_walks_often_and_clear_ones_rarely() {
@@ -516,7 +516,7 @@ mod tests {
         c.record(FIRST_BOUNCE, Walk::OneRay, ms(120), Choice::ENOUGH);
         c.record(SHADOWS, Walk::Bundles, ms(200), Choice::ENOUGH);
         c.record(SHADOWS, Walk::OneRay, ms(100), Choice::ENOUGH);
-        assert_eq!(timed(&c, FIRST_BOUNCE), 2 * 128 / 8);
+        assert_eq!(timed(&c, FIRST_BOUNCE), 2 * 128 / 32);
         assert_eq!(timed(&c, SHADOWS), 2 * 128 / 64);
         assert_eq!(c.walk(FIRST_BOUNCE, 3), (Walk::Bundles, false));
         assert_eq!(c.walk(SHADOWS, 3), (Walk::OneRay, false));

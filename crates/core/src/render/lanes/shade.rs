@@ -384,7 +384,7 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
         (bg, one)
     } else if let Some(e) = lane_env::map(g) {
         if miss.contains(&true) {
-            let (c, p_env) = lane_env::radiance_and_pdf(g, &facts.texels, e, d, miss);
+            let (c, p_env) = lane_env::radiance_and_pdf(g, &facts.texels, &facts.guides, e, d, miss);
             let p_env = specular.select(zero, p_env);
             (c, p_env.gt(zero).select(power_heuristic(pdf_b, p_env), one))
         } else {
