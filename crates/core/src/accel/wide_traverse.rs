@@ -44,6 +44,42 @@ pub fn occluded(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32,
     }
 }
 
+/// [`occluded`] in (0, tmax) for `n` ≤ 32 rays, `ray(i)` giving ray i and its tmax: bit i of
+/// the answer is set where ray i is blocked. The rays are walked one after the other, in one
+/// call (where [`occluded`] is a call per ray).
+#[inline]
+pub fn occluded_mask<'r>(
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    n: usize,
+    ray: impl Fn(usize) -> (&'r Ray<f32>, f32),
+) -> u32 {
+    debug_assert!(n <= 32);
+    #[cfg(target_arch = "x86_64")]
+    if simd::has_avx2() {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { occluded_mask_avx2(w, prims, n, ray) };
+    }
+    (0..n).fold(0, |m, i| {
+        let (r, tmax) = ray(i);
+        m | (occluded_with::<Scalar, false>(w, prims, r, 0.0, tmax) as u32) << i
+    })
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn occluded_mask_avx2<'r>(
+    w: &WideBvh,
+    prims: &Primitives<f32>,
+    n: usize,
+    ray: impl Fn(usize) -> (&'r Ray<f32>, f32),
+) -> u32 {
+    (0..n).fold(0, |m, i| {
+        let (r, tmax) = ray(i);
+        m | (occluded_with::<simd::Avx2, false>(w, prims, r, 0.0, tmax) as u32) << i
+    })
+}
+
 /// [`nearest`] with the portable lanes, whatever the CPU (for tests and comparisons).
 pub fn nearest_scalar(w: &WideBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32) -> Option<Hit<f32>> {
     if tmin >= 0.0 {
@@ -481,6 +517,26 @@ mod tests {
             blocked += want as usize;
         }
         assert!(blocked > 5_000 && blocked < 19_000, "{blocked} blocked: the test would prove little");
+    }
+
+    /// The mask of a group of rays has the bit of each ray that `occluded` finds blocked, for
+    /// groups of 1 to 32 rays with their own interval ends.
+    #[test]
+    fn the_mask_of_a_group_is_each_rays_occlusion() {
+        let (prims, w) = tree_over_mixed_scene(9);
+        let mut rng = TestRng(23);
+        let (mut blocked, mut free) = (0, 0);
+        for n in (1..=32).chain([16; 40]) {
+            let rays: Vec<(Ray<f32>, f32)> = (0..n)
+                .map(|i| (ray_f32(&rng.ray_towards(80.0, V3::zero(), 50.0)), [f32::INFINITY, 40.0, 80.0][i % 3]))
+                .collect();
+            let want =
+                rays.iter().enumerate().fold(0u32, |m, (i, (r, t))| m | (occluded(&w, &prims, r, 0.0, *t) as u32) << i);
+            assert_eq!(occluded_mask(&w, &prims, n, |i| (&rays[i].0, rays[i].1)), want, "{n} rays");
+            blocked += want.count_ones();
+            free += n as u32 - want.count_ones();
+        }
+        assert!(blocked > 200 && free > 200, "{blocked} blocked, {free} free: the test would prove little");
     }
 
     /// Intervals that start behind the origin and end short of infinity: the far planes'

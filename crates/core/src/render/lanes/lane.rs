@@ -361,6 +361,11 @@ impl<const N: usize> V<N> {
     pub fn from_rows(r: &[[f32; N]; 3]) -> Self {
         Self::new(F(r[0]), F(r[1]), F(r[2]))
     }
+    /// Vector `j` of rows holding vectors side by side (x, y, z of vector 0, then of 1, ...).
+    #[inline(always)]
+    pub fn nth(r: &[[f32; N]], j: usize) -> Self {
+        Self::new(F(r[3 * j]), F(r[3 * j + 1]), F(r[3 * j + 2]))
+    }
     #[inline(always)]
     pub fn rows(self) -> [[f32; N]; 3] {
         [self.x.0, self.y.0, self.z.0]

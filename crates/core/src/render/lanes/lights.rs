@@ -174,9 +174,8 @@ fn area<const N: usize>(
     }
     let one = F::splat(1.0);
     let zero = F::splat(0.0);
-    let vertex = |j: usize| V::new(F(corner[3 * j]), F(corner[3 * j + 1]), F(corner[3 * j + 2]));
     // Uniform on a triangle (Turk 1990 / pbrt-v4 A.5.5).
-    let (a, b, c) = (vertex(0), vertex(1), vertex(2));
+    let (a, b, c) = (V::nth(&corner, 0), V::nth(&corner, 1), V::nth(&corner, 2));
     let su = u[1].sqrt();
     let b0 = one - su;
     let (b1, b2) = (u[2] * su, one - b0 - u[2] * su);

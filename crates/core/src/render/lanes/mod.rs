@@ -205,7 +205,7 @@ impl<'f> Tracer<'f> {
         x0: u32,
         width: u32,
         samples: std::ops::Range<u32>,
-        add: &mut dyn FnMut(usize, V3<f32>),
+        add: &mut impl FnMut(usize, V3<f32>),
     ) {
         match self.isa {
             #[cfg(target_arch = "x86_64")]
@@ -227,7 +227,7 @@ impl<'f> Tracer<'f> {
         x0: u32,
         width: u32,
         samples: std::ops::Range<u32>,
-        add: &mut dyn FnMut(usize, V3<f32>),
+        add: &mut impl FnMut(usize, V3<f32>),
     ) {
         self.row_n::<16>(inp, y, x0, width, samples, add)
     }
@@ -241,7 +241,7 @@ impl<'f> Tracer<'f> {
         x0: u32,
         width: u32,
         samples: std::ops::Range<u32>,
-        add: &mut dyn FnMut(usize, V3<f32>),
+        add: &mut impl FnMut(usize, V3<f32>),
     ) {
         self.row_n::<8>(inp, y, x0, width, samples, add)
     }
@@ -254,7 +254,7 @@ impl<'f> Tracer<'f> {
         x0: u32,
         width: u32,
         samples: std::ops::Range<u32>,
-        add: &mut dyn FnMut(usize, V3<f32>),
+        add: &mut impl FnMut(usize, V3<f32>),
     ) {
         let f = inp.frame;
         let spp = samples.len() as u32;
@@ -301,12 +301,12 @@ impl<'f> Tracer<'f> {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn clock(&self) -> Option<Instant> {
         self.timed.then(Instant::now)
     }
 
-    #[inline]
+    #[inline(always)]
     fn lap(since: Option<Instant>, into: &mut Duration) -> Option<Instant> {
         since.map(|s| {
             let n = Instant::now();
@@ -447,8 +447,8 @@ impl<'f> Tracer<'f> {
                         }
                         bundle::occluded_lanes(self.isa, inp.wide, inp.prims, &rays, &tmax, chunk.len())
                     }
-                    Walk::OneRay => chunk.iter().enumerate().fold(0, |m, (l, (_, s))| {
-                        m | (wide_traverse::occluded(inp.wide, inp.prims, &s.ray, 0.0, s.dist) as u32) << l
+                    Walk::OneRay => wide_traverse::occluded_mask(inp.wide, inp.prims, chunk.len(), |l| {
+                        (&chunk[l].1.ray, chunk[l].1.dist)
                     }),
                 };
                 for (l, (i, s)) in chunk.iter().enumerate() {

@@ -45,13 +45,18 @@ fn lookup<const N: usize>(r: F<N>, cos_o: F<N>) -> (F<N>, F<N>) {
             e[4 * j + 3][l] = t[i + COS_STEPS + 1];
         }
     }
+    (bilerp(&e[..4], fx, fy), bilerp(&e[4..], fx, fy))
+}
+
+/// The four table entries `e` (the corners (0, 0), (0, 1), (1, 0), (1, 1)) interpolated at
+/// (fx, fy), as `microfacet::lookup` does. (A function, not a closure: the compiler left the
+/// closure out of line, in code without the ISA's instructions.)
+#[inline(always)]
+fn bilerp<const N: usize>(e: &[[f32; N]], fx: F<N>, fy: F<N>) -> F<N> {
     let one = F::splat(1.0);
-    let at = |j: usize| {
-        let top = F(e[4 * j]) * (one - fy) + F(e[4 * j + 1]) * fy;
-        let bottom = F(e[4 * j + 2]) * (one - fy) + F(e[4 * j + 3]) * fy;
-        top * (one - fx) + bottom * fx
-    };
-    (at(0), at(1))
+    let top = F(e[0]) * (one - fy) + F(e[1]) * fy;
+    let bottom = F(e[2]) * (one - fy) + F(e[3]) * fy;
+    top * (one - fx) + bottom * fx
 }
 
 /// [`crate::render::pbr::PbrLobes`] in lanes.

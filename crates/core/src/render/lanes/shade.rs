@@ -344,8 +344,9 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
     let l2 = to_hit.dot(to_hit);
     let usable = l2.gt(zero) & l2.lt(F::splat(f32::INFINITY));
     let sphere_n = usable.select_v(to_hit.normalize(), -d);
-    let corner = |j: usize| V::new(F(geo[3 * j]), F(geo[3 * j + 1]), F(geo[3 * j + 2]));
-    let (e1, e2) = (corner(1) - corner(0), corner(2) - corner(0));
+    // (No closures here: the compiler may leave one out of line, in code without the ISA's
+    // instructions.)
+    let (e1, e2) = (V::nth(&geo, 1) - V::nth(&geo, 0), V::nth(&geo, 2) - V::nth(&geo, 0));
     let face = V::new(e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x);
     let computed = M::from_bools(&sphere).select_v(sphere_n, face.normalize());
     let n = M::from_bools(&given).select_v(V::from_rows(&nrm), computed);
@@ -358,8 +359,8 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
     // what surface::surface gives there too).
     let mut shading = n;
     if RICH && surf.iter().any(|&s| s) {
-        let corner = |j: usize| V::new(F(corners[3 * j]), F(corners[3 * j + 1]), F(corners[3 * j + 2]));
-        let (b, c) = lane_surface::barycentrics(corner(0), corner(1), corner(2), o + d.scale(t));
+        let (a, b, c) = (V::nth(&corners, 0), V::nth(&corners, 1), V::nth(&corners, 2));
+        let (b, c) = lane_surface::barycentrics(a, b, c, o + d.scale(t));
         let w = [one - b - c, b, c];
         let tc = lane_surface::texture(g, &facts.texels, surf, color_tex, tri, w);
         color = color.mul_elem(V::new(tc[0], tc[1], tc[2]));
@@ -451,7 +452,7 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
     let smooth = M::from_bools(&smooth) & on_m & cont;
     let ns = shading_normal(U(kind), front, n, shading, wo, smooth);
     // The pbr lobes seen from wo.
-    let lobes = any_pbr.then(|| pbr::lobes(color, metallic, roughness, wo.dot(ns)));
+    let lobes = if any_pbr { Some(pbr::lobes(color, metallic, roughness, wo.dot(ns))) } else { None };
 
     // The light sample's value (bsdf::eval's Lambertian branch, behind path::eval_above's
     // face test) and its shadow ray.

@@ -73,9 +73,10 @@ pub(super) fn texture<const N: usize>(
     if index.iter().all(Option::is_none) {
         return [F::splat(1.0); 4];
     }
-    // lerp_uv, then the use's transform.
-    let at = |k: usize| F(uv[0][k]) * w[0] + F(uv[1][k]) * w[1] + F(uv[2][k]) * w[2];
-    let (u0, v0) = (at(0), at(1));
+    // lerp_uv, then the use's transform. (Written out: the compiler left a closure for it out
+    // of line, in code without the ISA's instructions.)
+    let u0 = F(uv[0][0]) * w[0] + F(uv[1][0]) * w[1] + F(uv[2][0]) * w[2];
+    let v0 = F(uv[0][1]) * w[0] + F(uv[1][1]) * w[1] + F(uv[2][1]) * w[2];
     let u = F(lin[0]) * u0 + F(lin[1]) * v0 + F(off[0]);
     let v = F(lin[2]) * u0 + F(lin[3]) * v0 + F(off[1]);
     sample_rgba(g, texels, index, u, v)
@@ -176,7 +177,8 @@ pub(super) fn sample_one<const N: usize>(t: &GpuTexture, rgba: &[[f32; 4]], on: 
             out[k][l] = c[k];
         }
     }
-    out.map(|c| on.select(F(c), F::splat(1.0)))
+    let one = F::splat(1.0);
+    [on.select(F(out[0]), one), on.select(F(out[1]), one), on.select(F(out[2]), one), on.select(F(out[3]), one)]
 }
 
 /// The shading normals of `surface::surface` from the vertex normals, in lanes `on` whose
@@ -199,8 +201,8 @@ pub(super) fn normals<const N: usize>(g: &FlatScene, on: [bool; N], tri: [u32; N
             code[j][l] = a.normal[j];
         }
     }
-    let vert = |j: usize| decode_octahedral(U(code[j]));
-    let v = (vert(0).scale(w[0]) + vert(1).scale(w[1]) + vert(2).scale(w[2])).normalize();
+    let (v0, v1, v2) = (decode_octahedral(U(code[0])), decode_octahedral(U(code[1])), decode_octahedral(U(code[2])));
+    let v = (v0.scale(w[0]) + v1.scale(w[1]) + v2.scale(w[2])).normalize();
     let one = F::splat(1.0);
     let unit = v.x.abs().le(one) & v.y.abs().le(one) & v.z.abs().le(one);
     let flipped = v.dot(n).lt(F::splat(0.0)).select_v(-v, v);
