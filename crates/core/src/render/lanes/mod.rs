@@ -159,7 +159,7 @@ pub struct Tracer<'f> {
     slots: Vec<(u32, V3<f32>)>,
     hits: [Nearest<f32>; MAX_WIDTH],
     shadow: Vec<(u32, NeeRay)>,
-    /// The one-ray walks' rays and answers.
+    /// The one-ray walks' rays and answers (as many answers as a batch has paths).
     one_rays: Vec<Ray<f32>>,
     one_hits: Vec<Option<Hit<f32>>>,
     nearest: Vec<Nearest<f32>>,
@@ -187,7 +187,7 @@ impl<'f> Tracer<'f> {
             hits: [Nearest::new(0.0); MAX_WIDTH],
             shadow: Vec::with_capacity(cap),
             one_rays: Vec::with_capacity(cap),
-            one_hits: Vec::with_capacity(cap),
+            one_hits: vec![None; cap],
             nearest: Vec::with_capacity(cap),
             choice: Choice::default(),
             batches: 0,
@@ -377,17 +377,10 @@ impl<'f> Tracer<'f> {
                 Walk::OneRay => {
                     self.one_rays.clear();
                     self.one_rays.extend((0..live).map(|i| self.paths.ray(i)));
-                    self.one_hits.clear();
-                    self.one_hits.resize(live, None);
-                    wide_traverse::nearest_many(
-                        inp.wide,
-                        inp.prims,
-                        &self.one_rays,
-                        0.0,
-                        f32::INFINITY,
-                        &mut self.one_hits,
-                    );
-                    self.nearest.extend(self.one_hits.iter().map(|h| match h {
+                    // (nearest_many writes every answer: the last round's need no clearing.)
+                    let hits = &mut self.one_hits[..live];
+                    wide_traverse::nearest_many(inp.wide, inp.prims, &self.one_rays, 0.0, f32::INFINITY, hits);
+                    self.nearest.extend(hits.iter().map(|h| match h {
                         Some(h) => Nearest { t: h.t, prim_ref: h.prim_ref, part: h.part, found: true },
                         None => Nearest::new(f32::INFINITY),
                     }));
