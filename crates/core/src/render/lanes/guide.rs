@@ -183,12 +183,13 @@ mod tests {
     }
 
     /// Every lane counts what a walk over the table counts, on tables with ties, zero steps,
-    /// a last value above and below 1, lengths 0 to 40, several tables at once, and numbers on
-    /// the values, on the bucket edges, between, below 0, at and above 1, and NaN.
+    /// a last value above and below 1, lengths 0 to 40 and a few longer ones (past
+    /// [`FINE_UP_TO`] in all, where the buckets are coarser), one table or three at once, and
+    /// numbers on the values, on the bucket edges, between, below 0, at and above 1, and NaN.
     #[test]
     fn counts_equal_a_walk_over_the_table() {
         let mut rng = Sampler::new(7, 1, 2);
-        for len in 0..=40usize {
+        for len in (0..=40usize).chain([63, 64, 65, 200, 30_000]) {
             for shape in 0..4 {
                 let tables: Vec<Vec<f32>> = (0..3)
                     .map(|_| {
@@ -211,21 +212,29 @@ mod tests {
                             .collect()
                     })
                     .collect();
-                let g = Guide::new(3, len, |t, i| tables[t][i]).expect("a guide");
-                assert_eq!(g.len(), len);
-                let mut us: Vec<f32> = tables.iter().flatten().copied().collect();
-                let k = len.max(1).next_power_of_two();
-                us.extend((0..=k).map(|b| b as f32 / k as f32));
-                us.extend((0..64).map(|_| rng.next_f32()));
-                us.extend([-0.5, -0.0, 0.0, 1.0, 1.5, f32::NAN, f32::INFINITY, f32::NEG_INFINITY]);
-                us.extend(tables.iter().flatten().flat_map(|&v| [v.next_down(), v.next_up()]));
-                for chunk in us.chunks(N) {
-                    let mut u = [0.5f32; N];
-                    u[..chunk.len()].copy_from_slice(chunk);
-                    let table: [usize; N] = std::array::from_fn(|l| l % 3);
-                    let got = g.count(table, F(u));
-                    for l in 0..N {
-                        assert_eq!(got[l], counted(&tables[l % 3], u[l]), "len {len}, shape {shape}, u {}", u[l]);
+                for n_tables in [1, 3] {
+                    let g = Guide::new(n_tables, len, |t, i| tables[t][i]).expect("a guide");
+                    assert_eq!(g.len(), len);
+                    let mut us: Vec<f32> = tables[..n_tables].iter().flatten().copied().collect();
+                    us.extend(tables[..n_tables].iter().flatten().flat_map(|&v| [v.next_down(), v.next_up()]));
+                    if us.len() > 3000 {
+                        // (A walk over a long table per number: a sample of them.)
+                        us = (0..3000).map(|_| us[(rng.next_f32() * us.len() as f32) as usize % us.len()]).collect();
+                    }
+                    let k = g.buckets;
+                    assert!(k >= len, "{k} buckets for {len} entries");
+                    us.extend((0..=k.min(4096)).map(|b| b as f32 / k as f32));
+                    us.extend((0..64).map(|_| rng.next_f32()));
+                    us.extend([-0.5, -0.0, 0.0, 1.0, 1.5, f32::NAN, f32::INFINITY, f32::NEG_INFINITY]);
+                    for chunk in us.chunks(N) {
+                        let mut u = [0.5f32; N];
+                        u[..chunk.len()].copy_from_slice(chunk);
+                        let table: [usize; N] = std::array::from_fn(|l| l % n_tables);
+                        let got = g.count(table, F(u));
+                        for l in 0..N {
+                            let want = counted(&tables[l % n_tables], u[l]);
+                            assert_eq!(got[l], want, "len {len}, shape {shape}, {n_tables} tables, u {}", u[l]);
+                        }
                     }
                 }
             }
