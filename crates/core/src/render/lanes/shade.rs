@@ -359,8 +359,8 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
     // what surface::surface gives there too).
     let mut shading = n;
     if RICH && surf.iter().any(|&s| s) {
-        let (a, b, c) = (V::nth(&corners, 0), V::nth(&corners, 1), V::nth(&corners, 2));
-        let (b, c) = lane_surface::barycentrics(a, b, c, o + d.scale(t));
+        let (p0, p1, p2) = (V::nth(&corners, 0), V::nth(&corners, 1), V::nth(&corners, 2));
+        let (b, c) = lane_surface::barycentrics(p0, p1, p2, o + d.scale(t));
         let w = [one - b - c, b, c];
         let tc = lane_surface::texture(g, &facts.texels, surf, color_tex, tri, w);
         color = color.mul_elem(V::new(tc[0], tc[1], tc[2]));
