@@ -1,9 +1,12 @@
-//! The cluster examples of `deploy/` run as their schedulers would run them, on this machine:
-//! the Slurm scripts under a stand-in `sbatch` that runs each array task at once with the
-//! environment Slurm gives it (`SLURM_ARRAY_TASK_ID`, `SLURM_CPUS_PER_TASK`) and the merge job
-//! after them, and the Kubernetes Indexed Job's command once per completion index with the
-//! job's environment. The merged image must equal a whole render bit for bit.
+//! The cluster examples of `deploy/` where no real scheduler runs here: the Kubernetes Indexed
+//! Job's command once per completion index with the job's environment (nothing here can run
+//! a cluster or pull an image), the merged image equal to a whole render bit for bit; and the
+//! Slurm task script's own errors, run as a task would be. The Slurm scripts themselves run
+//! under a real Slurm cluster in tests/slurm.rs.
 
+mod common;
+
+use common::{exr_bits as bits, seed_whole_bits as whole};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -33,86 +36,6 @@ fn run(c: &mut Command, extra_path: Option<&Path>) {
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
-}
-
-/// Small and quick, and path traced so that every pixel draws from its own random streams.
-const FLAGS: [&str; 10] = ["--backend", "cpu", "--mode", "path", "--spp", "2", "--width", "96", "--height", "61"];
-
-/// Every pixel's channels as bits, so that -0.0 and 0.0 are told apart.
-fn bits(p: &Path) -> Vec<[u32; 3]> {
-    strahl_core::image::read_exr(p).unwrap().image.pixels.iter().map(|px| px.map(f32::to_bits)).collect()
-}
-
-/// The whole image rendered at once with `flags`, as bits.
-fn whole(dir: &Path, flags: &[&str]) -> Vec<[u32; 3]> {
-    let whole = dir.join("whole.exr");
-    run(
-        Command::new(env!("CARGO_BIN_EXE_strahl"))
-            .args(["render", "assets/scenes/seed.toml", "-o", whole.to_str().unwrap()])
-            .args(flags),
-        None,
-    );
-    bits(&whole)
-}
-
-/// A stand-in for `sbatch` as `deploy/slurm/submit.sh` calls it: an array job runs its tasks
-/// one after another, each with the environment Slurm sets; a job with `--dependency=afterok:ID`
-/// is refused unless job ID succeeded; `--wrap` runs its command with sh. Prints the job id
-/// (as `--parsable` does).
-const FAKE_SBATCH: &str = r#"#!/bin/bash
-set -u
-jobs=$(dirname "$0")/jobs
-mkdir -p "$jobs"
-id=$(( $(ls "$jobs" | wc -l) + 100 ))
-array= wrap= script=
-while (($#)); do
-    case $1 in
-        --array=*) array=${1#--array=} ;;
-        --wrap) wrap=$2; shift ;;
-        --dependency=afterok:*)
-            dep=${1#--dependency=afterok:}
-            [[ $(cat "$jobs/$dep" 2>/dev/null) == ok ]] || { echo "sbatch: job $dep did not succeed" >&2; exit 1; } ;;
-        --*) ;;
-        *) script=$1; shift; break ;;
-    esac
-    shift
-done
-status=ok
-if [[ -n $wrap ]]; then
-    sh -c "$wrap" >&2 || status=failed
-else
-    first=${array%-*} last=${array#*-}
-    for ((t = first; t <= last; t++)); do
-        SLURM_ARRAY_JOB_ID=$id SLURM_ARRAY_TASK_ID=$t SLURM_CPUS_PER_TASK=1 bash "$script" "$@" >&2 || status=failed
-    done
-fi
-echo "$status" > "$jobs/$id"
-echo "$id"
-"#;
-
-#[test]
-fn the_slurm_array_renders_bands_that_merge_into_the_whole_image() {
-    let dir = tempfile::tempdir().unwrap();
-    let bin = dir.path().join("bin");
-    std::fs::create_dir(&bin).unwrap();
-    let sbatch = bin.join("sbatch");
-    std::fs::write(&sbatch, FAKE_SBATCH).unwrap();
-    std::fs::set_permissions(&sbatch, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
-    // A space in the output folder: the merge job's command must quote it.
-    let out = dir.path().join("seed render");
-    run(
-        Command::new("bash")
-            .args(["deploy/slurm/submit.sh", "assets/scenes/seed.toml", out.to_str().unwrap(), "4"])
-            .args(FLAGS),
-        Some(&bin),
-    );
-    for k in 0..4 {
-        assert!(out.join(format!("part-{k}.exr")).is_file(), "band {k} of 4");
-    }
-    assert!(!out.join("part-4.exr").exists());
-    let png = image::open(out.join("image.png")).expect("the merge job writes image.png").to_rgb8();
-    assert_eq!(png.dimensions(), (96, 61));
-    assert!(bits(&out.join("image.exr")) == whole(dir.path(), &FLAGS), "the merged bands differ from the whole render");
 }
 
 #[test]

@@ -150,7 +150,10 @@ fn merge_refuses_overlapping_missing_and_mismatched_parts() {
 
     let err = fails(&merge(&[&top, &left]), 1);
     assert!(err.contains("15000") && err.contains("--region 150,100,300,200"), "{err}");
+    // Bands (--tile) are named by number where every part is one.
     let err = fails(&merge(&[&band]), 1);
+    assert!(err.contains("bands 0, 2, 3 of 4 missing") && err.contains("--tile 0/4"), "{err}");
+    let err = fails(&merge(&[&band, &left]), 1);
     assert!(err.contains("uncovered") && err.contains("within the region 0,0,300,200"), "{err}");
 
     // A part of another render: more samples, another seed, another scene, another size.

@@ -202,7 +202,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     };
     let is_exr = a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     if is_exr {
-        let description = strahl_core::parts::Description { scene: &a.scene, mode, backend, device };
+        let description = strahl_core::parts::Description { scene: &a.scene, mode, backend, device, tile: a.tile };
         let placement = ExrPlacement {
             full: (width, height),
             region,

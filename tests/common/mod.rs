@@ -184,3 +184,24 @@ pub fn png(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
     img.write_to(&mut out, image::ImageFormat::Png).unwrap();
     out.into_inner()
 }
+
+/// An EXR file's pixels, each channel as its bits, so that -0.0 and 0.0 are told apart.
+pub fn exr_bits(p: &std::path::Path) -> Vec<[u32; 3]> {
+    strahl_core::image::read_exr(p).unwrap().image.pixels.iter().map(|px| px.map(f32::to_bits)).collect()
+}
+
+/// The seed scene rendered whole by the built `strahl` with `flags` (no backend from the
+/// caller's environment) into `dir/whole.exr`, as [`exr_bits`]: what a split render's merged
+/// image must equal.
+pub fn seed_whole_bits(dir: &std::path::Path, flags: &[&str]) -> Vec<[u32; 3]> {
+    let whole = dir.join("whole.exr");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_strahl"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env_remove("STRAHL_BACKEND")
+        .args(["render", "assets/scenes/seed.toml", "-o", whole.to_str().unwrap()])
+        .args(flags)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "the whole render failed: {}", String::from_utf8_lossy(&out.stderr));
+    exr_bits(&whole)
+}

@@ -34,15 +34,19 @@ pub struct Description<'a> {
     pub backend: &'static str,
     /// The device it ran on (informative: not compared).
     pub device: String,
+    /// `Some((k, n))` for band `k` of `n` (`strahl render --tile k/n`): recorded so that a merge
+    /// can name the bands that are missing.
+    pub tile: Option<(u32, u32)>,
 }
 
 /// The attributes recorded in every EXR file `strahl render` writes: the mode, samples per
 /// pixel, max depth, seed and backend, a fingerprint of everything the pixels depend on besides
 /// (the flattened geometry, materials, lights and emitters, and the frame: camera, image size,
-/// background, ambient), and for information the scene's file name and the device.
+/// background, ambient), and for information the scene's file name, the device and, for a
+/// band, which band of how many it is.
 pub fn describe(d: &Description, prep: &Prepared, frame: &FrameParams) -> BTreeMap<String, String> {
     let name = d.scene.file_name().map_or_else(|| d.scene.display().to_string(), |n| n.to_string_lossy().into_owned());
-    BTreeMap::from([
+    let mut attributes = BTreeMap::from([
         ("strahl.scene".to_string(), name),
         ("strahl.mode".to_string(), d.mode.name().to_string()),
         ("strahl.spp".to_string(), frame.spp.to_string()),
@@ -51,7 +55,31 @@ pub fn describe(d: &Description, prep: &Prepared, frame: &FrameParams) -> BTreeM
         ("strahl.backend".to_string(), d.backend.to_string()),
         ("strahl.device".to_string(), d.device.clone()),
         ("strahl.fingerprint".to_string(), format!("{:016x}", fingerprint(prep, frame))),
-    ])
+    ]);
+    if let Some((k, n)) = d.tile {
+        attributes.insert(TILE.to_string(), format!("{k}/{n}"));
+    }
+    attributes
+}
+
+/// The attribute of a band's part file: `k/n`.
+const TILE: &str = "strahl.tile";
+
+/// The band `(k, n)` a part says it is, if it says so and the band is one of `n`.
+fn band_of(part: &Part) -> Option<(u32, u32)> {
+    let (k, n) = part.placement.attributes.get(TILE)?.split_once('/')?;
+    let (k, n) = (k.parse().ok()?, n.parse().ok()?);
+    (k < n).then_some((k, n))
+}
+
+/// Where every part is a band of the same `n` (`--tile k/n`), the bands of `n` that no part is.
+fn missing_bands(parts: &[Part]) -> Option<(Vec<u32>, u32)> {
+    let bands: Vec<(u32, u32)> = parts.iter().map(band_of).collect::<Option<_>>()?;
+    let n = bands.first()?.1;
+    if bands.iter().any(|b| b.1 != n) {
+        return None;
+    }
+    Some(((0..n).filter(|k| !bands.iter().any(|b| b.0 == *k)).collect(), n))
 }
 
 /// FNV-1a (64 bits) over the bytes the pixels of a render depend on, besides the mode and the
@@ -168,6 +196,15 @@ fn check_tiling(parts: &[Part], w: u32, h: u32) -> Result<()> {
     let covered: u64 = parts.iter().map(|p| p.placement.region.pixel_count()).sum();
     let all = w as u64 * h as u64;
     if covered < all {
+        if let Some((missing, n)) = missing_bands(parts).filter(|(m, _)| !m.is_empty()) {
+            let list = missing.iter().map(u32::to_string).collect::<Vec<_>>().join(", ");
+            let (what, first) = (if missing.len() == 1 { "band" } else { "bands" }, missing[0]);
+            bail!(
+                "{what} {list} of {n} missing: the parts leave {} of the {w}x{h} image's pixels uncovered; render \
+                 each missing band with --tile K/{n} (as --tile {first}/{n})",
+                all - covered
+            );
+        }
         let gap = uncovered(parts.iter().map(|p| p.placement.region), w, h);
         let hint =
             if gap.pixel_count() == all - covered { format!("; render it with --region {gap}") } else { String::new() };
@@ -221,5 +258,25 @@ mod tests {
         // Two holes far apart: their bounding region.
         let regions = [r(1, 0, 10, 1), r(0, 1, 10, 5), r(0, 5, 9, 6)];
         assert_eq!(uncovered(regions.iter().copied(), 10, 6), r(0, 0, 10, 6));
+    }
+
+    #[test]
+    fn the_missing_bands_are_named_where_every_part_is_a_band() {
+        let part = |tile: Option<&str>| {
+            let mut placement = ExrPlacement::whole(4, 4);
+            if let Some(t) = tile {
+                placement.attributes.insert(TILE.to_string(), t.to_string());
+            }
+            Part { path: PathBuf::from("p.exr"), placement }
+        };
+        let bands = |tiles: &[Option<&str>]| missing_bands(&tiles.iter().map(|t| part(*t)).collect::<Vec<_>>());
+        assert_eq!(bands(&[Some("0/4"), Some("3/4"), Some("1/4")]), Some((vec![2], 4)));
+        assert_eq!(bands(&[Some("1/3")]), Some((vec![0, 2], 3)));
+        assert_eq!(bands(&[Some("0/2"), Some("1/2")]), Some((vec![], 2)));
+        // A part that is no band, bands of different counts, or a band out of its count: none named.
+        assert_eq!(bands(&[Some("0/4"), None]), None);
+        assert_eq!(bands(&[Some("0/4"), Some("1/3")]), None);
+        assert_eq!(bands(&[Some("4/4")]), None);
+        assert_eq!(bands(&[Some("x/4")]), None);
     }
 }
