@@ -17,11 +17,12 @@ use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_
 use rayon::prelude::*;
 use std::hint::black_box;
 use std::time::Duration;
-use strahl_core::accel::{Bvh, WideBvh, wide_traverse};
+use strahl_core::accel::Bvh;
 use strahl_core::math::{Ray, V3};
 use strahl_core::primitives::Primitives;
 use strahl_core::raysets;
 use strahl_core::scene::procedural::torus_scene;
+use strahl_cpu::accel::{WideBvh, wide_traverse};
 
 const RAYS: usize = 100_000;
 

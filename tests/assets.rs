@@ -7,11 +7,11 @@ mod common;
 use common::{cpu_path_image, gpu, gpu_path_image, mean_and_error};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use strahl_core::cpu;
 use strahl_core::image::Image;
 use strahl_core::render::Prepared;
 use strahl_core::scene::texture::srgb_to_linear;
 use strahl_core::scene::{EnvSampling, RenderMode, Scene};
+use strahl_cpu as cpu;
 use strahl_gpu::{GpuContext, SceneBuffers, render};
 
 // ---------------------------------------------------------------------------------------
@@ -158,7 +158,7 @@ fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
 
 fn whitted(prep: &Prepared, w: u32, h: u32) -> Image {
     let frame = prep.frame(w, h);
-    cpu::render(prep, &frame, RenderMode::Whitted, &|_| {})
+    cpu::render(&cpu::CpuScene::new(prep), &frame, RenderMode::Whitted, &|_| {})
 }
 
 fn gpu_whitted(ctx: &GpuContext, prep: &Prepared, w: u32, h: u32) -> Image {

@@ -8,8 +8,6 @@ mod common;
 
 use common::gpu;
 use rayon::prelude::*;
-use strahl_core::accel::wide_traverse;
-use strahl_core::cpu;
 use strahl_core::image::Image;
 use strahl_core::primitives::Hit;
 use strahl_core::query::RayQuery;
@@ -17,6 +15,8 @@ use strahl_core::render::Prepared;
 use strahl_core::render::camera::primary_ray;
 use strahl_core::scene::RenderMode;
 use strahl_core::scene::procedural::torus_scene;
+use strahl_cpu as cpu;
+use strahl_cpu::accel::wide_traverse;
 use strahl_gpu::split::SplitArray;
 use strahl_gpu::{GpuContext, SceneBuffers, render, trace::trace};
 
@@ -28,6 +28,7 @@ fn five_million_triangles_hit_as_brute_force_and_render_on_cpu_and_gpu() {
     let prep = Prepared::new(scene);
     assert_eq!(prep.prims.triangles.len(), 2 * 2236 * 1118);
     let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
+    let on_cpu = cpu::CpuScene::new(&prep);
 
     // Camera rays through a grid of pixels: the wide walk against all 5M triangles.
     let rays: Vec<_> = (0..12).flat_map(|j| (0..16).map(move |i| (6 * i + 3, 6 * j + 3))).collect();
@@ -37,7 +38,7 @@ fn five_million_triangles_hit_as_brute_force_and_render_on_cpu_and_gpu() {
             let ray = primary_ray(&frame, x, y, 0);
             let want = prep.prims.nearest_brute(&ray, 0.0, f32::INFINITY);
             assert_eq!(
-                wide_traverse::nearest(&prep.wide, &prep.prims, &ray, 0.0, f32::INFINITY),
+                wide_traverse::nearest(&on_cpu.wide, &prep.prims, &ray, 0.0, f32::INFINITY),
                 want,
                 "pixel {x},{y}"
             );
@@ -50,7 +51,7 @@ fn five_million_triangles_hit_as_brute_force_and_render_on_cpu_and_gpu() {
         rays.len()
     );
 
-    let cpu_image = cpu::render(&prep, &frame, RenderMode::Whitted, &|_| {});
+    let cpu_image = cpu::render(&on_cpu, &frame, RenderMode::Whitted, &|_| {});
     assert_eq!(cpu_image.non_finite_count(), 0);
     let background = prep.scene.render.background.map(|c| c as f32);
     let lit = cpu_image.pixels.iter().filter(|p| **p != background).count();

@@ -4,12 +4,12 @@
 mod common;
 
 use common::{Rng, gpu, same_hit, shared_edge_rays, shipped_scenes, test_rays};
-use strahl_core::cpu;
 use strahl_core::math::V3;
 use strahl_core::primitives::Hit;
 use strahl_core::query::RayQuery;
 use strahl_core::render::Prepared;
 use strahl_core::scene::Scene;
+use strahl_cpu as cpu;
 use strahl_gpu::{GpuContext, SceneBuffers, render, trace::trace};
 
 fn compare_traces(ctx: &GpuContext, path: &std::path::Path) {
@@ -163,7 +163,7 @@ fn gpu_images_match_cpu_on_every_shipped_scene() {
     for path in shipped_scenes() {
         let prep = Prepared::new(Scene::load(&path).unwrap());
         let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
-        let want = cpu::render(&prep, &frame, strahl_core::scene::RenderMode::Whitted, &|_| {});
+        let want = cpu::render(&cpu::CpuScene::new(&prep), &frame, strahl_core::scene::RenderMode::Whitted, &|_| {});
         let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
         let (got, _) =
             render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
@@ -250,7 +250,7 @@ fn a_tree_at_the_depth_bound_is_walked_alike_on_both_backends() {
     // The images render without a NaN; they are not compared, as the coplanar triangles shadow
     // each other where rounding decides.
     let frame = prep.frame(48, 36);
-    let cpu_image = cpu::render(&prep, &frame, strahl_core::scene::RenderMode::Whitted, &|_| {});
+    let cpu_image = cpu::render(&cpu::CpuScene::new(&prep), &frame, strahl_core::scene::RenderMode::Whitted, &|_| {});
     let (gpu_image, _) =
         render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
     assert_eq!((cpu_image.non_finite_count(), gpu_image.non_finite_count()), (0, 0));

@@ -9,12 +9,12 @@ mod common;
 
 use common::png;
 use std::path::{Path, PathBuf};
-use strahl_core::accel::bundle::Isa;
-use strahl_core::cpu::{self, PathTracer};
 use strahl_core::image::Region;
 use strahl_core::render::Prepared;
-use strahl_core::render::lanes::Walk;
 use strahl_core::scene::{RenderMode, Scene};
+use strahl_cpu::accel::bundle::Isa;
+use strahl_cpu::lanes::Walk;
+use strahl_cpu::{self as cpu, PathTracer};
 
 fn prepared(path: &Path) -> Prepared {
     Prepared::new(Scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())))
@@ -27,7 +27,7 @@ fn bits(prep: &Prepared, mode: RenderMode, w: u32, h: u32, spp: u32, base: u32, 
     frame.spp = spp;
     frame.sample_base = base;
     frame.seed = 7;
-    let img = cpu::render_region_with(prep, &frame, mode, Region::whole(w, h), tracer, &|_| {});
+    let img = cpu::render_region_with(&cpu::CpuScene::new(prep), &frame, mode, Region::whole(w, h), tracer, &|_| {});
     img.pixels.iter().map(|p| p.map(f32::to_bits)).collect()
 }
 
@@ -234,7 +234,7 @@ fn lanes_equal_the_one_by_one_tracer_on_a_textured_gltf_under_a_map() {
     let dir = tempfile::tempdir().unwrap();
     let prep = prepared(&pbr_scene(dir.path()));
     let frame = prep.frame(40, 30);
-    let facts = strahl_core::render::lanes::Facts::new(&prep.gpu, frame.num_lights, None);
+    let facts = strahl_cpu::lanes::Facts::new(&prep.gpu, frame.num_lights, None);
     let lanes: Vec<bool> = facts.materials.iter().map(Option::is_some).collect();
     // (After the file's three, the scene's default material.)
     assert_eq!(lanes[..3], [true, false, true], "which materials the lanes shade");

@@ -10,10 +10,10 @@ mod common;
 use common::{cpu_path_image, gpu, gpu_path_image, png};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use strahl_core::cpu;
 use strahl_core::image::Image;
 use strahl_core::render::Prepared;
 use strahl_core::scene::{RenderMode, Scene};
+use strahl_cpu as cpu;
 use strahl_gpu::{GpuContext, SceneBuffers, render};
 
 /// One primitive's vertex data; the quad's unless changed.
@@ -158,7 +158,7 @@ fn prepared(path: &Path) -> Arc<Prepared> {
 }
 
 fn whitted(prep: &Prepared, size: u32) -> Image {
-    cpu::render(prep, &prep.frame(size, size), RenderMode::Whitted, &|_| {})
+    cpu::render(&cpu::CpuScene::new(prep), &prep.frame(size, size), RenderMode::Whitted, &|_| {})
 }
 
 fn gpu_whitted(ctx: &GpuContext, prep: &Prepared, size: u32) -> Image {

@@ -6,11 +6,11 @@ mod common;
 use common::gpu;
 use std::path::Path;
 use std::sync::Arc;
-use strahl_core::cpu;
 use strahl_core::image::{Image, Region};
 use strahl_core::layout::FrameParams;
 use strahl_core::render::Prepared;
 use strahl_core::scene::{RenderMode, Scene, file::parse};
+use strahl_cpu as cpu;
 use strahl_gpu::{GpuContext, PathAccumulator, SceneBuffers};
 
 fn scene(src: &str) -> Scene {
@@ -338,7 +338,7 @@ fn direct_light_from_point_and_directional_lights_equals_whitted() {
     let mut frame = prep.frame(160, 120);
     let path_img = cpu_image(&prep, frame, 64);
     frame.spp = 64;
-    let whitted = cpu::render(&prep, &frame, RenderMode::Whitted, &|_| {});
+    let whitted = cpu::render(&cpu::CpuScene::new(&prep), &frame, RenderMode::Whitted, &|_| {});
     let rms = rms_codes(&path_img, &whitted);
     eprintln!("plane.toml, direct light, 64 spp: path and Whitted differ by {rms:.2} codes rms");
     assert!(rms < 1.0, "path and Whitted differ by {rms:.2} codes rms");

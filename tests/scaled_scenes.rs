@@ -7,10 +7,10 @@ mod common;
 
 use std::path::Path;
 use strahl::stiff::cases::{pixels_off_by_more_than, scaled};
-use strahl_core::cpu;
 use strahl_core::image::Image;
 use strahl_core::render::Prepared;
 use strahl_core::scene::{RenderMode, Scene};
+use strahl_cpu as cpu;
 use strahl_gpu as gpu;
 
 /// Large enough to resolve the glass sphere, the red sphere inside it, the shadows and the
@@ -31,7 +31,7 @@ fn render(scene: Scene, mode: RenderMode, spp: u32, ctx: Option<&gpu::GpuContext
     let mut frame = prep.frame(SIZE.0, SIZE.1);
     frame.spp = spp;
     let img = match ctx {
-        None => cpu::render(&prep, &frame, mode, &|_| {}),
+        None => cpu::render(&cpu::CpuScene::new(&prep), &frame, mode, &|_| {}),
         Some(ctx) => {
             let b = gpu::SceneBuffers::upload(ctx, &prep.gpu).unwrap();
             gpu::tiles::render(ctx, &b, &frame, mode, b.key, &|_, _| {}).unwrap().0

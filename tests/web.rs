@@ -19,7 +19,9 @@ use strahl_web::session::{self, Loaded, Options, Request};
 fn cpu_image(prep: &Arc<Prepared>, request: &Request) -> Image {
     let frame = request.frame(prep, None);
     match request.mode {
-        RenderMode::Whitted => strahl_core::cpu::render(prep, &frame, RenderMode::Whitted, &|_| {}),
+        RenderMode::Whitted => {
+            strahl_cpu::render(&strahl_cpu::CpuScene::new(prep), &frame, RenderMode::Whitted, &|_| {})
+        }
         RenderMode::Path => cpu_path_image(prep, frame, request.spp),
     }
 }
@@ -274,7 +276,7 @@ fn the_page_in_chromium_renders_and_traces_as_the_cpu_does() {
             Job::Trace { rays, all, check } => {
                 let columns = std::fs::read_to_string(work.path().join(format!("job{i}.json"))).unwrap();
                 let got = hits_of(&serde_json::from_str(&columns).unwrap());
-                let want = strahl_core::cpu::trace::<f32>(&scene, rays, *all);
+                let want = strahl_cpu::trace::<f32>(&scene, rays, *all);
                 assert_eq!(got.len(), want.len(), "{name}: rays answered");
                 match check {
                     Check::Agree => {}

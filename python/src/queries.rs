@@ -10,12 +10,12 @@ use crate::arrays::{CHUNK, RayChunks, RayIn};
 use crate::scene::{Built, INVALID_ID};
 use rayon::prelude::*;
 use std::sync::Arc;
-use strahl_core::accel::wide::prefetch;
-use strahl_core::accel::{traverse, wide_all, wide_traverse};
 use strahl_core::geometry::Triangle;
 use strahl_core::math::{Ray, Real, V3};
 use strahl_core::primitives::{Hit, PrimKind, Primitives};
 use strahl_core::query::RayQuery;
+use strahl_cpu::accel::wide::prefetch;
+use strahl_cpu::accel::{binary as traverse, wide_all, wide_traverse};
 use strahl_gpu::{GpuContext, GpuError};
 
 /// Where a query runs.
@@ -210,7 +210,7 @@ where
         Engine::Cpu32 => for_chunks(rays, out.slices(), |r, mut s| {
             let rays32: Vec<Ray<f32>> = r.iter().map(RayIn::ray32).collect();
             let mut hits = vec![None; r.len()];
-            wide_traverse::nearest_many(&built.prep.wide, prims, &rays32, 0.0, f32::INFINITY, &mut hits);
+            wide_traverse::nearest_many(&built.wide, prims, &rays32, 0.0, f32::INFINITY, &mut hits);
             for (k, h) in hits.iter().enumerate() {
                 // The walk took the triangle from its copy in a leaf; (u, v) needs it from
                 // the scene's array, a cache miss in a large mesh: asked for ahead.
@@ -266,7 +266,7 @@ where
         Engine::Cpu32 => for_chunks(rays, out.chunks_mut(CHUNK).collect(), |r, s: &mut [bool]| {
             for (o, ray) in s.iter_mut().zip(r) {
                 let q = ray.query(tnear, tfar);
-                *o = wide_traverse::occluded(&built.prep.wide, prims, &ray.ray32(), q.tmin as f32, q.tmax as f32);
+                *o = wide_traverse::occluded(&built.wide, prims, &ray.ray32(), q.tmin as f32, q.tmax as f32);
             }
         }),
         Engine::Cpu64 => {
@@ -318,7 +318,7 @@ where
             *s = r
                 .iter()
                 .map(|ray| {
-                    wide_all::all(&built.prep.wide, prims, &ray.ray32(), 0.0, f32::INFINITY, &mut hits);
+                    wide_all::all(&built.wide, prims, &ray.ray32(), 0.0, f32::INFINITY, &mut hits);
                     hits.iter().map(|h| answer(built, prims, ray, h)).collect()
                 })
                 .collect();
@@ -359,7 +359,7 @@ where
             let prims = &built.prep.prims;
             for_chunks(rays, out.chunks_mut(CHUNK).collect(), |r, s: &mut [u32]| {
                 for (o, ray) in s.iter_mut().zip(r) {
-                    *o = wide_all::count(&built.prep.wide, prims, &ray.ray32(), 0.0, f32::INFINITY) as u32;
+                    *o = wide_all::count(&built.wide, prims, &ray.ray32(), 0.0, f32::INFINITY) as u32;
                 }
             })
         }

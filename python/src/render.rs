@@ -90,7 +90,7 @@ impl Request {
         let mut frame = prep.frame(self.width, self.height);
         frame.seed = self.seed;
         let (ctx, note) = device::open(self.device, workload).map_err(gpu_error)?;
-        let on_cpu = || strahl_core::cpu::render(&prep, &frame, self.mode, &|_| ());
+        let on_cpu = || strahl_cpu::render(&strahl_cpu::CpuScene::new(&prep), &frame, self.mode, &|_| ());
         let (image, on) = match ctx {
             None => (on_cpu(), note.unwrap_or_else(|| "cpu".into())),
             Some(ctx) => {

@@ -15,6 +15,7 @@ use strahl_core::primitives::{Primitives, Tag};
 use strahl_core::render::{Prepared, available_memory, check_memory};
 use strahl_core::scene::mesh::MAX_MESH_TRIANGLES;
 use strahl_core::scene::{Camera, Geometry, ImageSize, Light, Object, Scene, SceneError, procedural};
+use strahl_cpu::accel::WideBvh;
 use strahl_gpu::{GpuContext, GpuError, SceneBuffers};
 
 /// Open3D's `INVALID_ID`: the geometry and primitive id of a miss.
@@ -32,6 +33,8 @@ struct Ids {
 /// What a query needs, built once per change of the scene.
 pub struct Built {
     pub prep: Prepared,
+    /// The CPU's 8-wide tree of `prep`, which the CPU queries walk.
+    pub wide: WideBvh,
     ids: Vec<Ids>,
     oracle: OnceLock<(Primitives<f64>, Bvh)>,
     gpu: OnceLock<Result<SceneBuffers, String>>,
@@ -180,7 +183,9 @@ impl Contents {
         }
         check_memory(&self.scene, available_memory()).map_err(|e| PyMemoryError::new_err(e.to_string()))?;
         let prep = Prepared::new(self.scene.clone());
-        let built = Arc::new(Built { prep, ids: self.ids.clone(), oracle: OnceLock::new(), gpu: OnceLock::new() });
+        let wide = WideBvh::new(&prep.bvh, &prep.prims);
+        let built =
+            Arc::new(Built { prep, wide, ids: self.ids.clone(), oracle: OnceLock::new(), gpu: OnceLock::new() });
         self.built = Some(built.clone());
         Ok(built)
     }

@@ -24,12 +24,12 @@ use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use strahl_core::accel::bundle::Isa;
-use strahl_core::cpu::{self, PathTracer};
 use strahl_core::image::Region;
 use strahl_core::layout::FrameParams;
 use strahl_core::render::Prepared;
 use strahl_core::scene::{RenderMode, Scene};
+use strahl_cpu::accel::bundle::Isa;
+use strahl_cpu::{self as cpu, PathTracer};
 use strahl_gpu::tiles::{PathAccumulator, render, render_tiles};
 use strahl_gpu::wavefront::Wavefront;
 use strahl_gpu::{FeatureKey, GpuContext, PathKernels, SceneBuffers};
@@ -261,6 +261,8 @@ fn bench_whitted(
     let gpu_times: Vec<RefCell<Vec<Duration>>> = variants.iter().map(|_| RefCell::default()).collect();
     let mut gpu = Vec::new();
     // The GPU rows (each compiled before any timing), then the CPU backend's; timed in turns.
+    // The CPU backend's tree, built once, outside the timed frames.
+    let on_cpu = cpu::CpuScene::new(prep);
     let mut rows: Vec<Frame<'_>> = Vec::new();
     if let (Some(ctx), Some(buffers)) = (ctx, &buffers) {
         for (&(variant, key), times) in variants.iter().zip(&gpu_times) {
@@ -280,7 +282,7 @@ fn bench_whitted(
         }
     }
     rows.push(Box::new(|| {
-        strahl_core::cpu::render(prep, &frame, RenderMode::Whitted, &|_| {});
+        cpu::render(&on_cpu, &frame, RenderMode::Whitted, &|_| {});
         Ok(())
     }));
     let walls = median_times(a.frames, &mut rows)?;
@@ -324,6 +326,8 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
     // The GPU tracers (pipelines compiled and kernels timed once before), then the CPU backend;
     // frames timed in turns.
     let mut labels = Vec::new();
+    // The CPU backend's tree, built once, outside the timed frames.
+    let on_cpu = &cpu::CpuScene::new(prep);
     let mut rows: Vec<Frame<'_>> = Vec::new();
     if let Some(ctx) = ctx {
         let buffers = SceneBuffers::upload(ctx, &prep.gpu)?;
@@ -358,7 +362,7 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
     // timed render each, summed over the threads.
     let mut cpu_tracers: Vec<(String, Value)> = Vec::new();
     for isa in Isa::available() {
-        let (_, t) = cpu::render_path_timed(prep, &frame, isa);
+        let (_, t) = cpu::render_path_timed(on_cpu, &frame, isa);
         let stages = json!({
             "generate": t.generate.as_secs_f64(),
             "trace": t.trace.as_secs_f64(),
@@ -368,7 +372,7 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
         cpu_tracers.push((format!("lanes ({}, {} wide)", isa.name(), isa.width()), stages));
         rows.push(Box::new(move || {
             cpu::render_region_with(
-                prep,
+                on_cpu,
                 &frame,
                 RenderMode::Path,
                 whole_frame(&frame),
@@ -380,7 +384,7 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
     }
     cpu_tracers.push(("one path at a time".to_string(), Value::Null));
     rows.push(Box::new(|| {
-        cpu::render_region_with(prep, &frame, RenderMode::Path, whole_frame(&frame), PathTracer::OneByOne, &|_| {});
+        cpu::render_region_with(on_cpu, &frame, RenderMode::Path, whole_frame(&frame), PathTracer::OneByOne, &|_| {});
         Ok(())
     }));
     let walls = median_times(a.frames, &mut rows)?;

@@ -7,11 +7,12 @@ use clap::{Args, ValueEnum};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-use strahl_core::accel::{Bvh, WideBvh, wide_traverse};
+use strahl_core::accel::Bvh;
 use strahl_core::math::{Ray, V3};
 use strahl_core::primitives::Primitives;
 use strahl_core::raysets;
 use strahl_core::scene::Scene;
+use strahl_cpu::accel::{WideBvh, wide_traverse};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum RaySet {

@@ -7,10 +7,10 @@ use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use strahl::converge::{Progressive, Row, Schedule};
-use strahl_core::cpu;
 use strahl_core::image::Image;
 use strahl_core::render::Prepared;
 use strahl_core::scene::{RenderMode, Scene};
+use strahl_cpu as cpu;
 use strahl_gpu::select::{self, Selected, Workload};
 use strahl_gpu::{self as gpu, SceneBuffers};
 

@@ -153,7 +153,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let render_on_cpu = || {
         let start = Instant::now();
         let per_row = region.width() as u64 * frame.spp as u64;
-        let img = strahl_core::cpu::render_region(&prep, &frame, mode, region, &|rows| progress.set(rows * per_row));
+        let img = strahl_cpu::render_region(&strahl_cpu::CpuScene::new(&prep), &frame, mode, region, &|rows| {
+            progress.set(rows * per_row)
+        });
         progress.finish();
         let secs = start.elapsed().as_secs_f64();
         let threads = rayon::current_num_threads();

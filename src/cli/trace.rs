@@ -78,7 +78,7 @@ pub fn run(a: TraceArgs) -> Result<()> {
 }
 
 fn cpu_csv<R: Real>(scene: &Scene, rays: &[RayQuery], all: bool) -> String {
-    hits_csv(rays, &strahl_core::cpu::trace::<R>(scene, rays, all), all)
+    hits_csv(rays, &strahl_cpu::trace::<R>(scene, rays, all), all)
 }
 
 fn gpu_csv(ctx: GpuContext, scene: &Scene, rays: &[RayQuery], all: bool) -> Result<String> {

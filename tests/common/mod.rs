@@ -82,7 +82,7 @@ pub fn cpu_path_image(
     frame: strahl_core::layout::FrameParams,
     spp: u32,
 ) -> strahl_core::image::Image {
-    let mut p = strahl_core::cpu::PathAccumulator::new(prep.clone(), frame);
+    let mut p = strahl_cpu::PathAccumulator::new(prep.clone(), frame);
     p.add_samples(spp);
     p.image()
 }

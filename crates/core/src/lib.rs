@@ -1,16 +1,16 @@
-//! strahl-core: everything strahl is without a device: the scene read from its files, the
-//! primitives and their intersections (f32, the GPU's mirror, and f64, the oracle), the BVH,
-//! the render stages both backends run, the buffer layouts they share, and the CPU backend.
+//! strahl-core: what both backends share: the scene read from its files, the primitives and
+//! their intersections (f32, the GPU's mirror, and f64, the oracle), the BVH and its GPU
+//! layout, the render stages' formulas (the f32 twins of the shaders), the buffer layouts, and
+//! images and their files.
 //!
 //! Data flows one way: scene file → [`scene::Scene`] → [`primitives::Primitives`] →
-//! [`accel::Bvh`] → a backend ([`cpu`] here, `strahl-gpu` on a device) → [`image::Image`] →
-//! output. [`parts`] assembles images rendered a region at a time.
+//! [`accel::Bvh`] → [`render::Prepared`] → a backend (`strahl-cpu`, or `strahl-gpu` on a
+//! device) → [`image::Image`] → output. [`parts`] assembles images rendered a region at a time.
 
 // `!(x >= 0.0)` is used on purpose throughout: unlike `x < 0.0` it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod accel;
-pub mod cpu;
 pub mod errors;
 pub mod geometry;
 pub mod image;

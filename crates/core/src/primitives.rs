@@ -316,8 +316,8 @@ mod tests {
 }
 
 /// Scenes the BVH tests walk.
-#[cfg(test)]
-pub(crate) mod testutil {
+#[doc(hidden)]
+pub mod testutil {
     use super::{Primitives, Tag, Tagged};
     use crate::geometry::testutil::{TestRays, TestRng};
     use crate::geometry::{Cylinder, Plane, Sphere, Triangle};

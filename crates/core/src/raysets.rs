@@ -57,7 +57,7 @@ pub fn random_rays(n: usize, lo: V3<f64>, hi: V3<f64>, seed: u64) -> Vec<Ray<f32
 mod tests {
     use super::*;
     use crate::accel::BvhNode;
-    use crate::accel::traverse::{safe_inverse, slab};
+    use crate::accel::slab::{safe_inverse, slab};
 
     #[test]
     fn camera_size_follows_the_anchor_script() {

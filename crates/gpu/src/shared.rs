@@ -51,7 +51,7 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
     use strahl_core::geometry::Part;
     use strahl_core::layout as g;
     use strahl_core::primitives::{PrimKind, PrimRef};
-    use strahl_core::render::{bsdf, microfacet, path, pbr, sampler, shade, spawn};
+    use strahl_core::render::{bsdf, limits, microfacet, pbr, sampler, spawn};
     use strahl_core::scene::MaterialKind;
     use strahl_core::scene::texture::Wrap;
     let mut values = vec![
@@ -107,12 +107,12 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("LINK_FIRST_MASK", U32(bvh::LINK_FIRST_MASK)),
         ("LINK_EMPTY", U32(bvh::LINK_EMPTY)),
         ("GPU_STACK", U32(bvh::MAX_DEPTH)),
-        // 1 + 2γ(3), the far-distance growth of the slab test (accel::traverse::slab).
+        // 1 + 2γ(3), the far-distance growth of the slab test (accel::slab::slab).
         ("SLAB_GROW", F32(1.0 + 2.0 * <f32 as Real>::gamma_bound(3))),
         // Shading and sampling (render::*).
-        ("WHITTED_STACK", U32(shade::WHITTED_STACK as u32)),
-        ("SHADOW_PASSES", U32(shade::SHADOW_PASSES)),
-        ("SHADOW_REACH", F32(path::SHADOW_REACH)),
+        ("WHITTED_STACK", U32(limits::WHITTED_STACK as u32)),
+        ("SHADOW_PASSES", U32(limits::SHADOW_PASSES)),
+        ("SHADOW_REACH", F32(limits::SHADOW_REACH)),
         ("MIN_ROUGHNESS", F32(bsdf::MIN_ROUGHNESS)),
         ("MIN_PBR_ALPHA", F32(pbr::MIN_PBR_ALPHA)),
         ("PBR_F0", F32(pbr::PBR_F0)),

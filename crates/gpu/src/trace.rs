@@ -150,7 +150,7 @@ fn dispatch(
     Ok(())
 }
 
-/// Spawned rays on the GPU, the twin of [`strahl_core::cpu::trace_spawn`]: per pair, the
+/// Spawned rays on the GPU, the twin of [`strahl_cpu::trace_spawn`]: per pair, the
 /// first hit and the nearest hit of the ray spawned from it.
 pub fn trace_spawn(
     ctx: &GpuContext,

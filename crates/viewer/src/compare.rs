@@ -46,7 +46,7 @@ impl Viewer {
         let frame = FrameParams { spp: acc.samples, sample_base: 0, flags: 0, ..*frame };
         self.cpu_job = Some(Job::spawn(move || {
             let start = Instant::now();
-            let cpu = strahl_core::cpu::render(&prep, &frame, render_mode, &|_| {});
+            let cpu = strahl_cpu::render(&strahl_cpu::CpuScene::new(&prep), &frame, render_mode, &|_| {});
             let cpu_time = start.elapsed();
             let agreement = strahl_metrics::agreement(&cpu, &gpu_image, 1);
             let (a, b) = (cpu.to_srgb8(), gpu_image.to_srgb8());

@@ -3,11 +3,12 @@
 
 use super::*;
 use std::time::Instant;
-use strahl_core::accel::{Bvh, traverse};
+use strahl_core::accel::Bvh;
 use strahl_core::geometry::{Shape, Triangle};
 use strahl_core::math::{Ray, V3};
 use strahl_core::primitives::{Primitives, Tag, Tagged};
 use strahl_core::query::RayQuery;
+use strahl_cpu::accel::binary as traverse;
 use strahl_gpu::{GpuError, trace};
 
 /// A closed UV sphere: `nu` segments around, `nv` rings, single vertices at the poles.

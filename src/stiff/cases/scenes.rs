@@ -139,7 +139,7 @@ fn render_on(
     opt: &Options,
 ) -> Result<Option<strahl_core::image::Image>, GpuError> {
     Ok(match variant {
-        Variant::Cpu => Some(strahl_core::cpu::render(prep, frame, RenderMode::Whitted, &|_| {})),
+        Variant::Cpu => Some(strahl_cpu::render(&strahl_cpu::CpuScene::new(prep), frame, RenderMode::Whitted, &|_| {})),
         Variant::Gpu => {
             let ctx = opt.gpu.expect("gpu");
             let b = SceneBuffers::upload(ctx, &prep.gpu)?;
@@ -155,7 +155,7 @@ pub fn far_from_origin(opt: &Options) -> Result<Vec<Row>, GpuError> {
     let far = strahl_core::render::Prepared::new(scene_at(1e5));
     let frame_near = near.frame(160, 120);
     let frame_far = far.frame(160, 120);
-    let reference = strahl_core::cpu::render(&near, &frame_near, RenderMode::Whitted, &|_| {});
+    let reference = strahl_cpu::render(&strahl_cpu::CpuScene::new(&near), &frame_near, RenderMode::Whitted, &|_| {});
     let bg = near.scene.render.background.map(|c| c as f32);
     each_variant(opt, |variant| {
         let Some(img) = render_on(variant, &far, &frame_far, opt)? else { return Ok(None) };
@@ -185,7 +185,8 @@ pub const SCALES: [f64; 4] = [1e-6, 1e-3, 1e3, 1e6];
 pub fn scaled_scenes(opt: &Options) -> Result<Vec<Row>, GpuError> {
     let (w, h) = (160, 120);
     let base = strahl_core::render::Prepared::new(scene_at(0.0));
-    let reference = strahl_core::cpu::render(&base, &base.frame(w, h), RenderMode::Whitted, &|_| {});
+    let reference =
+        strahl_cpu::render(&strahl_cpu::CpuScene::new(&base), &base.frame(w, h), RenderMode::Whitted, &|_| {});
     let mut rows = Vec::new();
     for s in SCALES {
         let prep = strahl_core::render::Prepared::new(scaled(&base.scene, s));

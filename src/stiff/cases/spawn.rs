@@ -76,7 +76,7 @@ pub fn spawned_rays(shapes: usize, rays: usize, opt: &Options, rng: &mut Rng) ->
     let n = pairs.len();
     each_variant(opt, |variant| {
         let (rehits, nan) = match variant {
-            Variant::Cpu => count_rehits(&strahl_core::cpu::trace_spawn(&prims, &bvh, &pairs), &targets),
+            Variant::Cpu => count_rehits(&strahl_cpu::trace_spawn(&prims, &bvh, &pairs), &targets),
             Variant::Gpu => {
                 let ctx = opt.gpu.expect("gpu");
                 let buffers = upload(ctx, &prims)?;

@@ -13,7 +13,7 @@
 //! (the tie rule of [`Nearest`] makes the visiting order irrelevant).
 
 use super::bvh::Bvh;
-use super::traverse::safe_inverse;
+use super::slab::safe_inverse;
 use crate::geometry::{Shape, Triangle};
 use crate::math::{Ray, Real, V3};
 use crate::primitives::{Hit, Nearest, PrimKind, PrimRef, Primitives, sort_hits};
@@ -245,7 +245,7 @@ impl GpuBvh {
 }
 
 /// Entry distance of the ray into the box (lo, hi) within [tmin, tmax], or -1: the slab test
-/// of [`super::traverse::slab`] (an axis the ray runs parallel to, `inv` 0, bounds nothing while
+/// of [`super::slab::slab`] (an axis the ray runs parallel to, `inv` 0, bounds nothing while
 /// the origin lies within the box on it and rules the box out otherwise), as `slab` in
 /// `shaders/modules/traverse.wgsl` computes it.
 #[inline]
@@ -313,7 +313,7 @@ fn walk(bvh: &GpuBvh, ray: &Ray<f32>, tmin: f32, bound: &mut dyn FnMut() -> f32,
 }
 
 /// The nearest hit in (tmin, tmax), walking the collapsed tree: identical to
-/// [`Primitives::nearest_brute`] (and to the binary tree's [`super::traverse::nearest`]).
+/// [`Primitives::nearest_brute`] (and to the binary tree's walk in `strahl-cpu`).
 pub fn nearest(bvh: &GpuBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tmax: f32) -> Option<Hit<f32>> {
     let mut best = Nearest::new(tmax);
     for r in prims.plane_refs() {

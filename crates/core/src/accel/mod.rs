@@ -1,21 +1,12 @@
 //! Acceleration structure: a binned-SAH BVH over every bounded primitive, flattened depth-first
-//! ([`bvh`]), with its binary traversal loops ([`traverse`]); the same tree collapsed into the
-//! layout the GPU walks ([`gpu_bvh`]), whose walk is the twin of `shaders/modules/traverse.wgsl`; and
-//! into the 8-wide nodes the CPU renderers walk ([`wide`], [`wide_traverse`]; every hit:
-//! [`wide_all`]) with lane-parallel box and triangle tests ([`simd`]).
+//! ([`bvh`]); the same tree collapsed into the layout the GPU walks ([`gpu_bvh`]), whose CPU
+//! walk is the twin of `shaders/modules/traverse.wgsl`; and the slab test every walk shares
+//! ([`slab`]). The CPU's own walks (the binary tree's, and the 8-wide, packet and bundle walks)
+//! are in `strahl-cpu`.
 
-pub mod bundle;
 pub mod bvh;
 pub mod gpu_bvh;
 pub mod huge_pages;
-#[cfg(target_arch = "x86_64")]
-pub mod packet;
-mod record;
-pub mod simd;
-pub mod traverse;
-pub mod wide;
-pub mod wide_all;
-pub mod wide_traverse;
+pub mod slab;
 
 pub use bvh::{Bvh, BvhNode};
-pub use wide::WideBvh;

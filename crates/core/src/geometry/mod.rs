@@ -107,8 +107,8 @@ pub fn stable_quadratic<R: Real>(a: R, beta: R, c: R, disc: R) -> Option<(R, R)>
     Some(if t1 <= t2 { (t1, t2) } else { (t2, t1) })
 }
 
-#[cfg(test)]
-pub(crate) mod testutil {
+#[doc(hidden)]
+pub mod testutil {
     use crate::math::{Ray, V3};
 
     pub use crate::rng::SplitMix64 as TestRng;

@@ -8,7 +8,6 @@
 
 use super::microfacet::{ggx_d, ggx_lambda, ggx_sample_visible, schlick};
 use super::pbr::{pbr_fresnel, pbr_lobes};
-use super::shade::{fresnel_dielectric, reflect, refract};
 use crate::layout::GpuMaterial;
 use crate::math::V3;
 use crate::scene::MaterialKind;
@@ -186,6 +185,36 @@ pub fn sample(m: &GpuMaterial, wo: V3<f32>, ns: V3<f32>, front: bool, u: [f32; 3
     let local = cosine_hemisphere(u[1], u[2]);
     let dir = to_world(local, ns).normalize();
     Some(BsdfSample { dir, weight: color, pdf: local.z * INV_PI, specular: false })
+}
+
+/// Unpolarised Fresnel reflectance of a dielectric interface (pbrt-v4 `FrDielectric`):
+/// `cos_i` of the incident side, `eta` = n_transmitted / n_incident. Returns 1 for total
+/// internal reflection.
+#[inline]
+pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (r_parl * r_parl + r_perp * r_perp)
+}
+
+/// Mirror direction of `d` about the unit normal `n`.
+#[inline]
+pub fn reflect(d: V3<f32>, n: V3<f32>) -> V3<f32> {
+    d - n * (2.0 * d.dot(n))
+}
+
+/// Refracted direction for incident `d`, normal `n` on the incident side, cos θ_i = −d·n and
+/// the ratio `eta_ratio` = n_incident / n_transmitted (no total internal reflection).
+#[inline]
+pub fn refract(d: V3<f32>, n: V3<f32>, cos_i: f32, eta_ratio: f32) -> V3<f32> {
+    let sin2_t = eta_ratio * eta_ratio * (1.0 - cos_i * cos_i);
+    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    (d * eta_ratio + n * (eta_ratio * cos_i - cos_t)).normalize()
 }
 
 #[cfg(test)]

@@ -144,6 +144,14 @@ pub fn area_pdf(frame: &FrameParams, radiance: [f32; 3], d2: f32, cos_l: f32) ->
     mean(radiance) * frame.emitter_norm * d2 / cos_l
 }
 
+/// The power heuristic with β = 2 for a sample drawn with density `pdf_a` against a second
+/// technique of density `pdf_b`.
+#[inline]
+pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
+    let (a, b) = (pdf_a * pdf_a, pdf_b * pdf_b);
+    if a + b > 0.0 { a / (a + b) } else { 0.0 }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

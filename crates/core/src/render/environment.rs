@@ -229,7 +229,7 @@ fn find_cell(cdf: &[f32], u: f32) -> usize {
 
 /// Density of the map's distribution at cell (i, j), over (u, v) ∈ [0, 1]².
 #[inline(always)]
-pub(crate) fn cell_pdf(g: &FlatScene, e: &GpuEnvironment, i: usize, j: usize) -> f32 {
+pub fn cell_pdf(g: &FlatScene, e: &GpuEnvironment, i: usize, j: usize) -> f32 {
     let (w, h) = (e.width as usize, e.height as usize);
     let marginal = &g.env_distribution[..h + 1];
     let row = &g.env_distribution[h + 1 + j * (w + 1)..h + 1 + (j + 1) * (w + 1)];

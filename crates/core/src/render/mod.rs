@@ -1,44 +1,44 @@
-//! Image formation shared by both backends, as stages named like the shaders:
-//! [`camera`] (`camera.wgsl`), [`spawn`] (`spawn.wgsl`), [`shade`] (`shade.wgsl`, Whitted),
-//! and for path tracing [`sampler`] (`sampler.wgsl`), [`bsdf`] (`bsdf.wgsl`), [`emitters`]
-//! (`emitters.wgsl`) and [`path`] (`modules/path.wgsl`); [`texture`] (`texture.wgsl`) and
-//! [`environment`] (`environment.wgsl`) for both modes.
-//! The CPU backend runs these functions; the GPU runs their WGSL twins.
+//! Image formation both backends share, as stages named like the shaders: [`camera`]
+//! (`camera.wgsl`), [`spawn`] (`spawn.wgsl`), [`surface`] (`surface.wgsl`), [`texture`]
+//! (`texture.wgsl`), [`environment`] (`environment.wgsl`), and for path tracing [`sampler`]
+//! (`sampler.wgsl`), [`bsdf`] (`bsdf.wgsl`), [`microfacet`] and [`pbr`], [`emitters`]
+//! (`emitters.wgsl`); [`limits`] holds the depths and reaches the tracers share, [`flatten`]
+//! the scene made into the buffers both read. The CPU backend (`strahl-cpu`) runs these
+//! functions in its tracers (`shade.rs`, `path.rs`, and lane by lane `lanes/`); the GPU runs
+//! their WGSL twins.
 
 pub mod bsdf;
 pub mod camera;
 pub mod emitters;
 pub mod environment;
 pub mod flatten;
-pub mod lanes;
+pub mod limits;
 pub mod microfacet;
-pub mod path;
 pub mod pbr;
 pub mod sampler;
-pub mod shade;
 pub mod spawn;
 pub mod surface;
 pub mod texture;
 pub mod view_camera;
 
-use crate::accel::{Bvh, WideBvh};
+use crate::accel::Bvh;
 use crate::layout::{FlatScene, FrameParams};
 use crate::primitives::Primitives;
 use crate::scene::Scene;
 use std::time::Duration;
 use web_time::Instant;
 
-/// A scene made ready for rendering: flattened, with its BVH built (the binary tree the GPU
-/// reads, and its 8-wide form the CPU walks).
+/// A scene made ready for rendering: flattened, with its BVH built and collapsed into the
+/// layout both backends read. Each backend builds what only it walks from here (the CPU its
+/// 8-wide tree).
 pub struct Prepared {
     pub scene: Scene,
     pub prims: Primitives<f32>,
     pub bvh: Bvh,
-    pub wide: WideBvh,
     pub gpu: FlatScene,
     /// Time spent building the BVH (the binary tree).
     pub build_time: Duration,
-    /// Time spent preparing the whole scene: its primitives, both trees and the GPU layout
+    /// Time spent preparing the whole scene: its primitives, the tree and the flat layout
     /// (materials, lights, emitters, textures, environment) included.
     pub prepare_time: Duration,
 }
@@ -111,15 +111,14 @@ impl Prepared {
         Self::from_prims(scene, prims, start)
     }
 
-    /// Builds the trees and GPU layout over `prims` (flattened from `scene`, perhaps with
+    /// Builds the tree and the flat layout over `prims` (flattened from `scene`, perhaps with
     /// objects left out); `start` is when the preparation began.
     pub fn from_prims(scene: Scene, prims: Primitives<f32>, start: Instant) -> Self {
         let built = Instant::now();
         let bvh = Bvh::build(&prims);
         let build_time = built.elapsed();
-        let wide = WideBvh::new(&bvh, &prims);
         let gpu = FlatScene::new(&scene, &prims, &bvh);
-        Self { scene, prims, bvh, wide, gpu, build_time, prepare_time: start.elapsed() }
+        Self { scene, prims, bvh, gpu, build_time, prepare_time: start.elapsed() }
     }
 
     /// [`Prepared::frame`] seen from `view` instead of the scene's camera (the viewer's and
@@ -142,7 +141,7 @@ impl Prepared {
         f.num_lights = self.gpu.lights.len() as u32;
         f.num_emitters = self.gpu.emitters.len() as u32;
         f.emitter_norm = self.gpu.emitter_norm;
-        f.rr_depth = path::RR_DEPTH;
+        f.rr_depth = limits::RR_DEPTH;
         f.tile_size = [width, height];
         f.out_pitch = width;
         if !self.gpu.environment.is_empty() {
@@ -166,31 +165,5 @@ mod tests {
         assert!(msg.contains(&format!("{n} primitives")) && msg.contains("MiB of memory available"), "{msg}");
         assert!(check_memory(&scene, Some(n * BYTES_PER_PRIMITIVE)).is_ok());
         assert!(check_memory(&scene, None).is_ok());
-    }
-
-    /// The estimate covers what preparing really holds: the sizes of the structures built for
-    /// a mesh stay below BYTES_PER_PRIMITIVE per triangle.
-    #[test]
-    fn the_memory_estimate_covers_the_structures_built() {
-        let prep = Prepared::new(crate::scene::procedural::torus_scene(100_000));
-        let n = prep.prims.triangles.len();
-        let bytes = |len: usize, size: usize| (len * size) as u64;
-        let held = bytes(n, size_of_val(&prep.prims.triangles[0]))
-            + bytes(prep.bvh.nodes.len(), size_of::<crate::accel::BvhNode>())
-            + bytes(prep.bvh.prim_refs.len(), 4)
-            + prep.wide.bytes() as u64
-            + bytes(prep.gpu.triangles.len(), size_of::<crate::layout::GpuTriangle>())
-            + bytes(prep.gpu.leaf_triangles.len(), size_of::<crate::accel::gpu_bvh::GpuLeafTriangle>())
-            + bytes(prep.gpu.nodes.len(), size_of::<crate::accel::gpu_bvh::GpuNode>())
-            + bytes(prep.gpu.shape_refs.len(), 4)
-            // The build's records, freed before the collapse.
-            + bytes(n, 32);
-        eprintln!("prepared: {} bytes per triangle", held / n as u64);
-        assert!(held < n as u64 * BYTES_PER_PRIMITIVE, "{} bytes per triangle", held / n as u64);
-        assert!(
-            held > n as u64 * BYTES_PER_PRIMITIVE / 2,
-            "the estimate is far too high: {} per triangle",
-            held / n as u64
-        );
     }
 }

@@ -114,7 +114,7 @@ fn wrap_coord(u: f32, mode: u32) -> f32 {
 /// A texel index one step outside [0, n) brought back by the wrap mode (mirror and clamp
 /// agree there).
 #[inline]
-pub(crate) fn wrap_index(i: i32, n: i32, mode: u32) -> i32 {
+pub fn wrap_index(i: i32, n: i32, mode: u32) -> i32 {
     if mode == Wrap::Repeat as u32 {
         if i < 0 {
             i + n
@@ -130,7 +130,7 @@ pub(crate) fn wrap_index(i: i32, n: i32, mode: u32) -> i32 {
 
 /// Texel (x, y) of texture `t`: linear RGB and alpha (1 for radiance maps).
 #[inline(always)]
-pub(crate) fn texel(texels: &[u32], t: &GpuTexture, x: i32, y: i32) -> [f32; 4] {
+pub fn texel(texels: &[u32], t: &GpuTexture, x: i32, y: i32) -> [f32; 4] {
     let i = y as u32 * t.width + x as u32;
     if t.flags & TEXTURE_LINEAR_RGB != 0 {
         let k = (t.offset + 3 * i) as usize;
@@ -149,7 +149,7 @@ pub(crate) fn texel(texels: &[u32], t: &GpuTexture, x: i32, y: i32) -> [f32; 4] 
 /// a·(1 − t) + b·t in each channel (on x86-64 the four channels in one register, which the
 /// compiler does not do by itself in the lane tracer's loops; the same operations either way).
 #[inline(always)]
-pub(crate) fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
+pub fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: SSE is part of x86-64; the loads and the store touch the four f32 of a, b and r.
     unsafe {
