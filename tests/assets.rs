@@ -163,7 +163,7 @@ fn whitted(prep: &Prepared, w: u32, h: u32) -> Image {
 
 fn gpu_whitted(ctx: &GpuContext, prep: &Prepared, w: u32, h: u32) -> Image {
     let frame = prep.frame(w, h);
-    let buffers = SceneBuffers::upload(ctx, &prep.gpu).unwrap();
+    let buffers = SceneBuffers::upload(ctx, &prep.flat).unwrap();
     let (img, _) = render(ctx, &buffers, &frame, RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
     img
 }

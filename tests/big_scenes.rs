@@ -62,8 +62,8 @@ fn five_million_triangles_hit_as_brute_force_and_render_on_cpu_and_gpu() {
     // the triangles, nodes and leaf triangles are uploaded in parts, and the variant reads them
     // so.
     let start = std::time::Instant::now();
-    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
-    let triangle_bytes = std::mem::size_of_val(prep.gpu.triangles.as_slice()) as u64;
+    let buffers = SceneBuffers::upload(&ctx, &prep.flat).unwrap();
+    let triangle_bytes = std::mem::size_of_val(prep.flat.triangles.as_slice()) as u64;
     let over = triangle_bytes > ctx.max_binding_bytes();
     assert_eq!(buffers.split().parts(SplitArray::Triangles) > 1, over, "{}", buffers.key.label());
     assert_gpu_renders_as_cpu(&ctx, &prep, &buffers, &cpu_image);

@@ -56,7 +56,7 @@ fn a_device_error_is_returned_and_the_context_stays_usable() {
     let e = made.expect_err("a buffer over max_buffer_size is refused");
     assert!(e.to_string().contains("a test buffer"), "{e}");
     let prep = Prepared::new(Scene::load(root().join("assets/scenes/sphere.toml")).unwrap());
-    SceneBuffers::upload(&ctx, &prep.gpu).expect("the context works after the error");
+    SceneBuffers::upload(&ctx, &prep.flat).expect("the context works after the error");
     ctx.check().expect("the error was reported once, where it happened");
 }
 

@@ -27,7 +27,7 @@ fn arrays_over_what_strahl_splits_or_the_bindings_allow_are_refused_by_name() {
     // Pretend the adapter allows 1 MiB per binding: the seed's 100k triangles (4.8 MB) would
     // need five parts of 21845 triangles, one more than strahl splits an array into.
     ctx.limits.max_storage_buffer_binding_size = 1 << 20;
-    let e = SceneBuffers::upload(&ctx, &prep.gpu).err().expect("an upload over the limits must fail");
+    let e = SceneBuffers::upload(&ctx, &prep.flat).err().expect("an upload over the limits must fail");
     let msg = e.to_string();
     assert!(matches!(e, GpuError::TooManyParts { what: "triangles", parts: 5, .. }), "{msg}");
     for part in ["triangles", "5 storage bindings of 1048560 bytes", "max_storage_buffer_binding_size", "the 4"] {
@@ -37,16 +37,16 @@ fn arrays_over_what_strahl_splits_or_the_bindings_allow_are_refused_by_name() {
     // per stage a pipeline binds for a scene whose arrays fit: more than 12.
     ctx.limits.max_storage_buffer_binding_size = 2 << 20;
     ctx.limits.max_storage_buffers_per_shader_stage = 12;
-    let e = SceneBuffers::upload(&ctx, &prep.gpu).err().expect("an upload over the bindings must fail");
+    let e = SceneBuffers::upload(&ctx, &prep.flat).err().expect("an upload over the bindings must fail");
     assert!(matches!(e, GpuError::TooManyBindings { need: 13, extra: 5, limit: 12 }), "{e}");
     assert!(e.to_string().contains("max_storage_buffers_per_shader_stage"), "{e}");
     // The buffer that is never split over one binding: the packed objects of the lecture's
     // three spheres (a header, 96 bytes of spheres, the materials; too few for a BVH).
     ctx.limits.max_storage_buffer_binding_size = 64;
     let lecture = scene("lecture.toml");
-    let objects = strahl_gpu::objects::objects_bytes(&lecture.gpu);
+    let objects = strahl_gpu::objects::objects_bytes(&lecture.flat);
     assert!(objects > 64 + 96, "{objects}");
-    let e = SceneBuffers::upload(&ctx, &lecture.gpu).err().expect("64-byte bindings hold no scene");
+    let e = SceneBuffers::upload(&ctx, &lecture.flat).err().expect("64-byte bindings hold no scene");
     let GpuError::TooLarge { what, need, limit: 64, limit_name: "max_storage_buffer_binding_size" } = &e else {
         panic!("wrong error: {e}")
     };
@@ -54,7 +54,7 @@ fn arrays_over_what_strahl_splits_or_the_bindings_allow_are_refused_by_name() {
     assert!(what.starts_with("the scene's objects (spheres,"), "{e}");
     // Where max_buffer_size is the smaller limit, the error names it.
     ctx.limits.max_buffer_size = 32;
-    let e = SceneBuffers::upload(&ctx, &scene("lecture.toml").gpu).err().expect("32-byte buffers hold no scene");
+    let e = SceneBuffers::upload(&ctx, &scene("lecture.toml").flat).err().expect("32-byte buffers hold no scene");
     assert!(e.to_string().contains("32 bytes, its max_buffer_size"), "{e}");
 }
 
@@ -102,8 +102,8 @@ fn arrays_split_across_bindings_are_read_as_if_whole() {
         let mut split_ctx = GpuContext::new().unwrap();
         split_ctx.limits.max_storage_buffer_binding_size = limit;
         let split_ctx = Arc::new(split_ctx);
-        let whole = SceneBuffers::upload(&whole_ctx, &prep.gpu).unwrap();
-        let split = SceneBuffers::upload(&split_ctx, &prep.gpu).unwrap();
+        let whole = SceneBuffers::upload(&whole_ctx, &prep.flat).unwrap();
+        let split = SceneBuffers::upload(&split_ctx, &prep.flat).unwrap();
         assert!(!whole.split().is_split(), "{name}");
         assert_eq!(SplitArray::ALL.map(|a| split.split().parts(a)), parts, "{name}: {}", split.key.label());
         assert_eq!(split.bytes, whole.bytes, "{name}: every byte uploaded once");
@@ -138,7 +138,7 @@ fn images_taller_than_one_binding_render_in_seamless_bands() {
     let Some(mut ctx) = gpu() else { return };
     let prep = scene("cylinder.toml");
     let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
-    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+    let buffers = SceneBuffers::upload(&ctx, &prep.flat).unwrap();
     let (whole, one) =
         render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
     // Room for 37 rows per output binding: the image needs several bands, none tile-aligned.

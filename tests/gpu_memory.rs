@@ -32,7 +32,7 @@ fn memory_stays_flat_over_thousands_of_sample_passes() {
 
     // Progressive path tracing (the viewer's and converge's passes): 1024 passes measured
     // after a warm-up that compiles the pipeline and fills the allocators.
-    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+    let buffers = SceneBuffers::upload(&ctx, &prep.flat).unwrap();
     let mut p = PathAccumulator::new(ctx.clone(), buffers, frame).unwrap();
     p.add_samples(64).unwrap();
     let before = rss_kib();
@@ -45,7 +45,7 @@ fn memory_stays_flat_over_thousands_of_sample_passes() {
     assert_eq!(p.image().unwrap().non_finite_count(), 0);
 
     // `strahl render` in Whitted mode: one sample pass per sample, with timestamp queries.
-    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+    let buffers = SceneBuffers::upload(&ctx, &prep.flat).unwrap();
     let whitted = |spp: u32| {
         let f = strahl_core::layout::FrameParams { spp, ..frame };
         render(&ctx, &buffers, &f, RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap()

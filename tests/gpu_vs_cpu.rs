@@ -15,7 +15,7 @@ use strahl_gpu::{GpuContext, SceneBuffers, render, trace::trace};
 fn compare_traces(ctx: &GpuContext, path: &std::path::Path) {
     let scene = Scene::load(path).unwrap();
     let prep = Prepared::new(scene.clone());
-    let buffers = SceneBuffers::upload(ctx, &prep.gpu).unwrap();
+    let buffers = SceneBuffers::upload(ctx, &prep.flat).unwrap();
     let rays = test_rays(&prep, 4000, 17);
     for all in [false, true] {
         let want = cpu::trace::<f32>(&scene, &rays, all);
@@ -56,7 +56,7 @@ fn lecture_example_is_bit_exact_on_gpu() {
     let Some(ctx) = gpu() else { return };
     let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/lecture.toml")).unwrap();
     let prep = Prepared::new(scene);
-    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+    let buffers = SceneBuffers::upload(&ctx, &prep.flat).unwrap();
     let ray = RayQuery { origin: V3::zero(), dir: V3::new(0.0, 0.0, 1.0), tmin: 0.0, tmax: f64::INFINITY };
     let all = trace(&ctx, &buffers, &[ray], true).unwrap();
     let rows: Vec<(f32, u32, bool, [f32; 3])> =
@@ -77,7 +77,7 @@ fn lecture_example_is_bit_exact_on_gpu() {
 /// A shipped scene and its buffers on `ctx`.
 fn shipped_on(ctx: &GpuContext, name: &str) -> (Scene, SceneBuffers) {
     let scene = Scene::load(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes").join(name)).unwrap();
-    let buffers = SceneBuffers::upload(ctx, &Prepared::new(scene.clone()).gpu).unwrap();
+    let buffers = SceneBuffers::upload(ctx, &Prepared::new(scene.clone()).flat).unwrap();
     (scene, buffers)
 }
 
@@ -111,7 +111,7 @@ fn a_ray_from_1e38_gives_the_same_rows_on_both_backends() {
         let scene =
             Scene::load(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes").join(name)).unwrap();
         let prep = Prepared::new(scene.clone());
-        let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+        let buffers = SceneBuffers::upload(&ctx, &prep.flat).unwrap();
         for all in [false, true] {
             let want = cpu::trace::<f32>(&scene, &[ray], all);
             let got = trace(&ctx, &buffers, &[ray], all).unwrap();
@@ -164,7 +164,7 @@ fn gpu_images_match_cpu_on_every_shipped_scene() {
         let prep = Prepared::new(Scene::load(&path).unwrap());
         let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
         let want = cpu::render(&cpu::CpuScene::new(&prep), &frame, strahl_core::scene::RenderMode::Whitted, &|_| {});
-        let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+        let buffers = SceneBuffers::upload(&ctx, &prep.flat).unwrap();
         let (got, _) =
             render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
         assert_eq!(got.non_finite_count(), 0, "{}", path.display());
@@ -185,7 +185,7 @@ fn all_features_shader_agrees_with_the_specialised_one() {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes").join(name);
         let prep = Prepared::new(Scene::load(&path).unwrap());
         let frame = prep.frame(prep.scene.image.width, prep.scene.image.height);
-        let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+        let buffers = SceneBuffers::upload(&ctx, &prep.flat).unwrap();
         assert_ne!(buffers.key, FeatureKey::ALL);
         let (a, _) =
             render(&ctx, &buffers, &frame, strahl_core::scene::RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
@@ -209,7 +209,7 @@ fn a_tree_at_the_depth_bound_is_walked_alike_on_both_backends() {
     let scene = strahl_core::scene::procedural::deep_chain_scene(43, 300, 48, 36);
     let prep = Prepared::new(scene.clone());
     assert_eq!(prep.bvh.depth, strahl_core::accel::bvh::MAX_DEPTH, "the test needs a tree at the bound");
-    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+    let buffers = SceneBuffers::upload(&ctx, &prep.flat).unwrap();
     let mut rng = Rng(23);
     let rays: Vec<RayQuery> = (0..400)
         .map(|i| {

@@ -234,12 +234,12 @@ fn lanes_equal_the_one_by_one_tracer_on_a_textured_gltf_under_a_map() {
     let dir = tempfile::tempdir().unwrap();
     let prep = prepared(&pbr_scene(dir.path()));
     let frame = prep.frame(40, 30);
-    let facts = strahl_cpu::lanes::Facts::new(&prep.gpu, frame.num_lights, None);
+    let facts = strahl_cpu::lanes::Facts::new(&prep.flat, frame.num_lights, None);
     let lanes: Vec<bool> = facts.materials.iter().map(Option::is_some).collect();
     // (After the file's three, the scene's default material.)
     assert_eq!(lanes[..3], [true, false, true], "which materials the lanes shade");
     assert!(frame.num_emitters > 0, "the glowing sphere is an area light");
-    assert!(facts.lanes_ok && facts.rich && !prep.gpu.environment.is_empty() && !prep.gpu.triangle_attrs.is_empty());
+    assert!(facts.lanes_ok && facts.rich && !prep.flat.environment.is_empty() && !prep.flat.triangle_attrs.is_empty());
     check("pbr.toml", &prep, 40, 30, 6, 3);
 }
 

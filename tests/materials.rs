@@ -162,7 +162,7 @@ fn whitted(prep: &Prepared, size: u32) -> Image {
 }
 
 fn gpu_whitted(ctx: &GpuContext, prep: &Prepared, size: u32) -> Image {
-    let buffers = SceneBuffers::upload(ctx, &prep.gpu).unwrap();
+    let buffers = SceneBuffers::upload(ctx, &prep.flat).unwrap();
     let (img, _) =
         render(ctx, &buffers, &prep.frame(size, size), RenderMode::Whitted, buffers.key, &|_, _| {}).unwrap();
     img
@@ -456,7 +456,7 @@ fn every_material_path_agrees_on_both_backends() {
     scene.environment = Some(strahl_core::scene::Environment::constant([0.3, 0.35, 0.4]));
     scene.render.ambient = [0.0; 3];
     let prep = Arc::new(Prepared::new(scene));
-    assert!(!prep.gpu.triangle_attrs.is_empty());
+    assert!(!prep.flat.triangle_attrs.is_empty());
     let size = 40;
     assert_backends_agree("all, whitted", &whitted(&prep, size), &gpu_whitted(&ctx, &prep, size));
     let frame = prep.frame(size, size);

@@ -358,9 +358,9 @@ fn wavefront_and_megakernel_render_the_same_image() {
         let prep = Prepared::new(scene);
         if what != "mixed" {
             assert!(
-                !prep.gpu.environment.is_empty()
-                    && !prep.gpu.triangle_attrs.is_empty()
-                    && !prep.gpu.emitters.is_empty()
+                !prep.flat.environment.is_empty()
+                    && !prep.flat.triangle_attrs.is_empty()
+                    && !prep.flat.emitters.is_empty()
             );
         }
         let frame = FrameParams { spp: 5, ..prep.frame(40, 30) };
@@ -377,7 +377,7 @@ fn assert_wavefront_is_megakernel(ctx: &Arc<GpuContext>, prep: &Prepared, frame:
         let lit = a.pixels.iter().filter(|p| p.iter().any(|&c| c > 0.0)).count();
         assert!(lit > a.pixels.len() / 2, "{what}, {how}: only {lit} pixels lit");
     };
-    let buffers = SceneBuffers::upload(ctx, &prep.gpu).unwrap();
+    let buffers = SceneBuffers::upload(ctx, &prep.flat).unwrap();
     let mut wf = PathAccumulator::with_kernels(ctx.clone(), buffers.clone(), frame, PathKernels::Wavefront).unwrap();
     assert_eq!(wf.kernels(), PathKernels::Wavefront);
     wf.add_samples(2).unwrap();

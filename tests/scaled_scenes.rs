@@ -33,7 +33,7 @@ fn render(scene: Scene, mode: RenderMode, spp: u32, ctx: Option<&gpu::GpuContext
     let img = match ctx {
         None => cpu::render(&cpu::CpuScene::new(&prep), &frame, mode, &|_| {}),
         Some(ctx) => {
-            let b = gpu::SceneBuffers::upload(ctx, &prep.gpu).unwrap();
+            let b = gpu::SceneBuffers::upload(ctx, &prep.flat).unwrap();
             gpu::tiles::render(ctx, &b, &frame, mode, b.key, &|_, _| {}).unwrap().0
         }
     };

@@ -114,7 +114,7 @@ fn window_matches_the_library(mode: strahl_core::scene::RenderMode) {
 
     // The same view rendered by the library with the same samples.
     let prep = Prepared::new(Scene::load(&scene_path).unwrap());
-    let buffers = SceneBuffers::upload(&ctx, &prep.gpu).unwrap();
+    let buffers = SceneBuffers::upload(&ctx, &prep.flat).unwrap();
     let mut frame = prep.frame(w, h);
     frame.spp = samples;
     let (reference, _) = render(&ctx, &buffers, &frame, mode, buffers.key, &|_, _| {}).unwrap();

@@ -94,7 +94,7 @@ impl Request {
         let (image, on) = match ctx {
             None => (on_cpu(), note.unwrap_or_else(|| "cpu".into())),
             Some(ctx) => {
-                let gpu = strahl_gpu::SceneBuffers::upload(&ctx, &prep.gpu).and_then(|buffers| {
+                let gpu = strahl_gpu::SceneBuffers::upload(&ctx, &prep.flat).and_then(|buffers| {
                     strahl_gpu::tiles::render(&ctx, &buffers, &frame, self.mode, buffers.key, &|_, _| ())
                 });
                 match gpu {

@@ -61,7 +61,7 @@ impl Built {
     /// cannot be (too large for the adapter's limits, out of memory).
     pub fn buffers(&self, ctx: &GpuContext) -> Result<&SceneBuffers, GpuError> {
         self.gpu
-            .get_or_init(|| SceneBuffers::upload(ctx, &self.prep.gpu).map_err(|e| e.to_string()))
+            .get_or_init(|| SceneBuffers::upload(ctx, &self.prep.flat).map_err(|e| e.to_string()))
             .as_ref()
             .map_err(|e| GpuError::Wgpu(e.clone()))
     }

@@ -94,7 +94,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             let path = a.scenes.first().context("--compile-only needs a scene")?;
             let prep = Prepared::try_new(Scene::load(path)?)?;
             let ctx = GpuContext::new()?;
-            let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
+            let buffers = SceneBuffers::upload(&ctx, &prep.flat)?;
             println!("{}", first_dispatch(&ctx, &buffers, &prep, FeatureKey::from_bits_retain(bits))?.as_secs_f64());
             Ok(())
         }
@@ -247,7 +247,7 @@ fn bench_whitted(
     let frame = prep.frame(w, h);
     let rays = w as f64 * h as f64 * frame.spp as f64;
     let buffers = match ctx {
-        Some(ctx) => Some(SceneBuffers::upload(ctx, &prep.gpu)?),
+        Some(ctx) => Some(SceneBuffers::upload(ctx, &prep.flat)?),
         None => None,
     };
     let mut variants = Vec::new();
@@ -330,7 +330,7 @@ fn bench_path(a: &BenchArgs, ctx: Option<&Arc<GpuContext>>, prep: &Prepared, w: 
     let on_cpu = &cpu::CpuScene::new(prep);
     let mut rows: Vec<Frame<'_>> = Vec::new();
     if let Some(ctx) = ctx {
-        let buffers = SceneBuffers::upload(ctx, &prep.gpu)?;
+        let buffers = SceneBuffers::upload(ctx, &prep.flat)?;
         let key = buffers.key;
         // Compile (lavapipe compiles at the first dispatch), then per-kernel GPU times from one
         // render with timestamp queries.

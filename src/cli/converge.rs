@@ -268,7 +268,7 @@ fn open_progressive(
         Selected::Cpu => Box::new(cpu::PathAccumulator::new(prep.clone(), frame)),
         Selected::Gpu(ctx) => {
             let ctx = Arc::new(*ctx);
-            let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
+            let buffers = SceneBuffers::upload(&ctx, &prep.flat)?;
             let mut p = gpu::tiles::PathAccumulator::new(ctx, buffers, frame)?;
             // lavapipe compiles the shader at its first dispatch.
             p.add_samples(1)?;

@@ -173,7 +173,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         Selected::Gpu(ctx) => super::gpu_or_cpu(
             auto,
             || {
-                let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
+                let buffers = SceneBuffers::upload(&ctx, &prep.flat)?;
                 let (img, stats) =
                     gpu::tiles::render_region(&ctx, &buffers, &frame, mode, buffers.key, region, &|done, total| {
                         // A step is one sample pass over one band.

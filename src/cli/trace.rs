@@ -84,7 +84,7 @@ fn cpu_csv<R: Real>(scene: &Scene, rays: &[RayQuery], all: bool) -> String {
 fn gpu_csv(ctx: GpuContext, scene: &Scene, rays: &[RayQuery], all: bool) -> Result<String> {
     use strahl_gpu::{SceneBuffers, trace};
     let prep = strahl_core::render::Prepared::new(scene.clone());
-    let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
+    let buffers = SceneBuffers::upload(&ctx, &prep.flat)?;
     let hits = trace::trace(&ctx, &buffers, rays, all)?;
     eprintln!("traced on {}", ctx.adapter_name());
     Ok(hits_csv(rays, &hits, all))

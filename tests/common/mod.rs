@@ -94,7 +94,7 @@ pub fn gpu_path_image(
     frame: strahl_core::layout::FrameParams,
     spp: u32,
 ) -> strahl_core::image::Image {
-    let buffers = strahl_gpu::SceneBuffers::upload(ctx, &prep.gpu).unwrap();
+    let buffers = strahl_gpu::SceneBuffers::upload(ctx, &prep.flat).unwrap();
     let mut p = strahl_gpu::tiles::PathAccumulator::new(ctx.clone(), buffers, frame).unwrap();
     p.add_samples(spp).unwrap();
     p.image().unwrap()

@@ -1,7 +1,8 @@
-//! The buffers the GPU reads, as `#[repr(C)]` + [`bytemuck::Pod`] structs whose layout equals
-//! the WGSL structs in `shaders/modules/types.wgsl` (a test checks every size and offset through
-//! naga's layouter). The CPU renderer reads the same structs, so both backends shade from
-//! identical f32 data. The scene is flattened into them by [`crate::render::flatten`].
+//! The flat layout both backends read: the scene as `#[repr(C)]` + [`bytemuck::Pod`] records
+//! ([`FlatScene`]: `Flat*` structs), whose layout equals the WGSL structs in
+//! `shaders/modules/types.wgsl` (a test checks every size and offset through naga's layouter),
+//! so that the GPU's storage buffers and the CPU's tracers shade from identical f32 data. The
+//! scene is flattened into them by [`crate::render::flatten`].
 //!
 //! WGSL's `vec3<f32>` is 16-byte aligned with size 12: every `[f32; 3]` here is followed by a
 //! 4-byte field that fills the rest of its 16 bytes.
@@ -12,7 +13,7 @@ use bytemuck::{Pod, Zeroable};
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuSphere {
+pub struct FlatSphere {
     pub center: [f32; 3],
     pub radius: f32,
     pub object: u32,
@@ -23,7 +24,7 @@ pub struct GpuSphere {
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuCylinder {
+pub struct FlatCylinder {
     /// p1 of the lecture (WGSL member names may not end in a digit).
     pub pa: [f32; 3],
     pub radius: f32,
@@ -39,7 +40,7 @@ pub struct GpuCylinder {
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuPlane {
+pub struct FlatPlane {
     pub point: [f32; 3],
     pub object: u32,
     pub normal: [f32; 3],
@@ -48,7 +49,7 @@ pub struct GpuPlane {
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuTriangle {
+pub struct FlatTriangle {
     pub va: [f32; 3],
     pub object: u32,
     pub vb: [f32; 3],
@@ -59,7 +60,7 @@ pub struct GpuTriangle {
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuMaterial {
+pub struct FlatMaterial {
     pub color: [f32; 3],
     /// [`crate::scene::MaterialKind`] as u32.
     pub kind: u32,
@@ -88,7 +89,7 @@ pub struct GpuMaterial {
     pub _pad: [u32; 2],
 }
 
-impl GpuMaterial {
+impl FlatMaterial {
     /// What the material is. A kind the shaders do not know shades as diffuse there (their
     /// default branch), so it does here too; the scene loader writes only known kinds.
     pub fn kind(&self) -> MaterialKind {
@@ -126,7 +127,7 @@ pub const LIGHT_DIRECTIONAL: u32 = 1;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuLight {
+pub struct FlatLight {
     /// Position (point light) or unit direction of travel (directional light).
     pub vector: [f32; 3],
     pub kind: u32,
@@ -147,7 +148,7 @@ pub const EMITTER_AREA: u32 = 0;
 /// (proportional to its power) by inverting the cumulative `cdf`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuEmitter {
+pub struct FlatEmitter {
     pub source: u32,
     /// [`EMITTER_AREA`].
     pub kind: u32,
@@ -160,7 +161,7 @@ pub struct GpuEmitter {
 /// `shaders/modules/types.wgsl`): uses of one image share its texels.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuTexture {
+pub struct FlatTexture {
     pub width: u32,
     pub height: u32,
     /// The word of texel (0, 0) in the texel buffer; texel (x, y) follows at y·width + x
@@ -196,7 +197,7 @@ pub const SRGB_TABLE_WORDS: u32 = 256;
 /// bytes (`TriangleAttrs` in `shaders/modules/types.wgsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuTriangleAttrs {
+pub struct FlatTriangleAttrs {
     /// Texture coordinates (`TEXCOORD_0`) of vertices a, b, c.
     pub uv: [[f32; 2]; 3],
     /// The second set (`TEXCOORD_1`).
@@ -242,7 +243,7 @@ pub fn encode_unorm8x4(c: [f32; 4]) -> u32 {
 /// The environment (`[environment]`), 192 bytes (`Environment` in `shaders/modules/types.wgsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuEnvironment {
+pub struct FlatEnvironment {
     /// The constant radiance, or what multiplies the map (its strength), per channel.
     pub radiance: [f32; 3],
     /// [`ENV_MAP`] | [`ENV_UNIFORM`].
@@ -330,13 +331,14 @@ pub const VIEW_DEPTH: u32 = 2;
 pub const VIEW_COST: u32 = 3;
 pub const VIEW_PATH: u32 = 4;
 
-/// Everything a backend needs, flattened: the layout of the GPU's storage buffers.
+/// Everything a backend needs, flattened: the GPU's storage buffers hold it as it is, and the
+/// CPU's tracers read it in place.
 #[derive(Clone, Debug, Default)]
 pub struct FlatScene {
-    pub spheres: Vec<GpuSphere>,
-    pub cylinders: Vec<GpuCylinder>,
-    pub planes: Vec<GpuPlane>,
-    pub triangles: Vec<GpuTriangle>,
+    pub spheres: Vec<FlatSphere>,
+    pub cylinders: Vec<FlatCylinder>,
+    pub planes: Vec<FlatPlane>,
+    pub triangles: Vec<FlatTriangle>,
     /// The BVH as the GPU walks it ([`crate::accel::gpu_bvh`]); empty without bounded
     /// primitives, or with more than [`crate::accel::gpu_bvh::MAX_PRIMS`] of them (which no GPU buffer holds).
     pub nodes: Vec<GpuNode>,
@@ -344,23 +346,23 @@ pub struct FlatScene {
     pub shape_refs: Vec<u32>,
     /// Triangles in leaf order.
     pub leaf_triangles: Vec<GpuLeafTriangle>,
-    pub materials: Vec<GpuMaterial>,
-    pub lights: Vec<GpuLight>,
+    pub materials: Vec<FlatMaterial>,
+    pub lights: Vec<FlatLight>,
     /// Path mode's sampled light sources: emissive triangles and spheres.
-    pub emitters: Vec<GpuEmitter>,
+    pub emitters: Vec<FlatEmitter>,
     /// 1 / Σ emitter weights ([`FrameParams::emitter_norm`]) times the probability of choosing
     /// an area emitter rather than the environment; 0 without emitters.
     pub emitter_norm: f32,
     /// Images ([`crate::render::texture`]), the environment map last.
-    pub textures: Vec<GpuTexture>,
+    pub textures: Vec<FlatTexture>,
     /// The sRGB table ([`SRGB_TABLE_WORDS`]) followed by every image's texels; empty when
     /// no material has a texture and the environment no map.
     pub texels: Vec<u32>,
     /// Per triangle, in `triangles` order; empty when no material has a texture and no mesh
     /// has normals or colours.
-    pub triangle_attrs: Vec<GpuTriangleAttrs>,
+    pub triangle_attrs: Vec<FlatTriangleAttrs>,
     /// The environment, when the scene has one (one element).
-    pub environment: Vec<GpuEnvironment>,
+    pub environment: Vec<FlatEnvironment>,
     /// The environment map's sampling distribution ([`crate::render::environment`]).
     pub env_distribution: Vec<f32>,
     /// Some material lets rays through by its alpha ([`MATERIAL_ALPHA`]): shadow rays towards
@@ -411,8 +413,8 @@ mod tests {
     #[test]
     fn a_material_reads_back_the_kind_it_was_written_with() {
         for k in MaterialKind::ALL {
-            assert_eq!(GpuMaterial { kind: k as u32, ..Default::default() }.kind(), k);
+            assert_eq!(FlatMaterial { kind: k as u32, ..Default::default() }.kind(), k);
         }
-        assert_eq!(GpuMaterial { kind: 99, ..Default::default() }.kind(), MaterialKind::Diffuse);
+        assert_eq!(FlatMaterial { kind: 99, ..Default::default() }.kind(), MaterialKind::Diffuse);
     }
 }

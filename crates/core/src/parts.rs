@@ -87,7 +87,7 @@ fn missing_bands(parts: &[Part]) -> Option<(Vec<u32>, u32)> {
 /// search) and the whole image's frame. Equal renders give equal fingerprints on any machine
 /// (the bytes are little-endian f32 and u32 from the same scene file and code).
 pub fn fingerprint(prep: &Prepared, frame: &FrameParams) -> u64 {
-    let g = &prep.gpu;
+    let g = &prep.flat;
     let whole = FrameParams {
         tile_origin: [0, 0],
         tile_size: [frame.width, frame.height],

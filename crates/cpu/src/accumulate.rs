@@ -41,12 +41,12 @@ impl PathAccumulator {
     pub fn add_samples(&mut self, n: u32) {
         let frame = FrameParams { spp: 1, ..self.frame };
         let prep = &self.prep;
-        let inputs = ShadeInputs { prims: &prep.prims, wide: &self.wide, gpu: &prep.gpu, frame: &frame };
+        let inputs = ShadeInputs { prims: &prep.prims, wide: &self.wide, flat: &prep.flat, frame: &frame };
         let first = self.samples;
         let rows = self.sums.par_chunks_mut(frame.width as usize).enumerate();
         match self.tracer.lanes() {
             Some((isa, walk)) => {
-                let facts = lanes::Facts::new(&prep.gpu, frame.num_lights, walk);
+                let facts = lanes::Facts::new(&prep.flat, frame.num_lights, walk);
                 rows.for_each_init(
                     || lanes::Tracer::new(isa, &facts, false),
                     |tracer, (y, row)| {

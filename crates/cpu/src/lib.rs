@@ -45,7 +45,7 @@ impl<'p> CpuScene<'p> {
 
     /// What the shading stages read to render `frame`.
     pub fn inputs<'a>(&'a self, frame: &'a FrameParams) -> shade::ShadeInputs<'a> {
-        shade::ShadeInputs { prims: &self.prep.prims, wide: &self.wide, gpu: &self.prep.gpu, frame }
+        shade::ShadeInputs { prims: &self.prep.prims, wide: &self.wide, flat: &self.prep.flat, frame }
     }
 }
 
@@ -72,10 +72,10 @@ mod tests {
             + bytes(prep.bvh.nodes.len(), size_of::<strahl_core::accel::BvhNode>())
             + bytes(prep.bvh.prim_refs.len(), 4)
             + cpu.wide.bytes() as u64
-            + bytes(prep.gpu.triangles.len(), size_of::<strahl_core::layout::GpuTriangle>())
-            + bytes(prep.gpu.leaf_triangles.len(), size_of::<strahl_core::accel::gpu_bvh::GpuLeafTriangle>())
-            + bytes(prep.gpu.nodes.len(), size_of::<strahl_core::accel::gpu_bvh::GpuNode>())
-            + bytes(prep.gpu.shape_refs.len(), 4)
+            + bytes(prep.flat.triangles.len(), size_of::<strahl_core::layout::FlatTriangle>())
+            + bytes(prep.flat.leaf_triangles.len(), size_of::<strahl_core::accel::gpu_bvh::GpuLeafTriangle>())
+            + bytes(prep.flat.nodes.len(), size_of::<strahl_core::accel::gpu_bvh::GpuNode>())
+            + bytes(prep.flat.shape_refs.len(), 4)
             // The build's records, freed before the collapse.
             + bytes(n, 32);
         eprintln!("prepared: {} bytes per triangle", held / n as u64);

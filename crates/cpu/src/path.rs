@@ -21,7 +21,7 @@
 
 use crate::accel::wide_traverse;
 use crate::shade::ShadeInputs;
-use strahl_core::layout::{GpuMaterial, MATERIAL_ALPHA, MATERIAL_ALPHA_BLEND};
+use strahl_core::layout::{FlatMaterial, MATERIAL_ALPHA, MATERIAL_ALPHA_BLEND};
 use strahl_core::math::{Ray, V3};
 use strahl_core::primitives::{Hit, PrimKind};
 use strahl_core::render::bsdf::{self, is_specular};
@@ -89,7 +89,7 @@ pub fn shade_vertex(
     rng: &mut Sampler,
     nee: &mut Option<NeeRay>,
 ) -> bool {
-    let (f, g) = (inp.frame, inp.gpu);
+    let (f, g) = (inp.frame, inp.flat);
     *nee = None;
     let ray = p.ray;
     if p.seg > f.max_depth {
@@ -190,7 +190,7 @@ pub fn shade_vertex(
 /// [`bsdf::eval`] about the shading normal, for directions above the surface's face only: light
 /// from below the face reaches no point of it, whatever the shading normal says.
 #[inline]
-pub fn eval_above(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>, ng: V3<f32>) -> (V3<f32>, f32) {
+pub fn eval_above(m: &FlatMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>, ng: V3<f32>) -> (V3<f32>, f32) {
     if wi.dot(ng) <= 0.0 {
         return (V3::zero(), 0.0);
     }
@@ -203,7 +203,7 @@ pub fn eval_above(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>, ng: V3
 /// [`SHADOW_PASSES`] crossings. Only the delta lights need it: light from area
 /// emitters and the sky through alpha surfaces is found by paths that pass them.
 pub fn transmittance(inp: &ShadeInputs, ray: &Ray<f32>, tmax: f32) -> f32 {
-    if !inp.gpu.alpha {
+    if !inp.flat.alpha {
         return if occluded(inp, ray, tmax) { 0.0 } else { 1.0 };
     }
     let mut origin = ray.origin;
@@ -214,11 +214,11 @@ pub fn transmittance(inp: &ShadeInputs, ray: &Ray<f32>, tmax: f32) -> f32 {
         let Some(hit) = wide_traverse::nearest(inp.wide, inp.prims, &r, 0.0, remaining) else {
             return tr;
         };
-        let m = &inp.gpu.materials[hit.tag.material as usize];
+        let m = &inp.flat.materials[hit.tag.material as usize];
         if m.flags & MATERIAL_ALPHA == 0 {
             return 0.0;
         }
-        let s = surface::surface(inp.gpu, m, hit.prim_ref, r.at(hit.t), hit.normal);
+        let s = surface::surface(inp.flat, m, hit.prim_ref, r.at(hit.t), hit.normal);
         tr *= 1.0 - surface::coverage(m, s.alpha);
         if tr <= 0.0 {
             return 0.0;

@@ -122,7 +122,7 @@ fn render_region_timed(
     match (mode, tracer.lanes()) {
         (RenderMode::Path, Some((isa, walk))) => {
             let samples = frame.sample_base..frame.sample_base + frame.spp;
-            let facts = lanes::Facts::new(&scene.prep.gpu, frame.num_lights, walk);
+            let facts = lanes::Facts::new(&scene.prep.flat, frame.num_lights, walk);
             // Each worker's tracer, its time added to `times` when the worker is done.
             struct Worker<'f, 't> {
                 tracer: lanes::Tracer<'f>,

@@ -7,7 +7,7 @@
 //! same contributions in the same order.
 
 use crate::accel::{WideBvh, wide_traverse};
-use strahl_core::layout::{FlatScene, FrameParams, GpuLight, GpuMaterial, LIGHT_POINT, MATERIAL_ALPHA};
+use strahl_core::layout::{FlatLight, FlatMaterial, FlatScene, FrameParams, LIGHT_POINT, MATERIAL_ALPHA};
 use strahl_core::math::{Ray, V3};
 use strahl_core::primitives::{Hit, Primitives};
 use strahl_core::render::bsdf::{fresnel_dielectric, reflect, refract};
@@ -25,7 +25,7 @@ const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
 pub struct ShadeInputs<'a> {
     pub prims: &'a Primitives<f32>,
     pub wide: &'a WideBvh,
-    pub gpu: &'a FlatScene,
+    pub flat: &'a FlatScene,
     pub frame: &'a FrameParams,
 }
 
@@ -48,10 +48,10 @@ fn shadow_transmittance(inp: &ShadeInputs, from: &Ray<f32>, t: f32, n: V3<f32>, 
         let Some(hit) = wide_traverse::nearest(inp.wide, inp.prims, &ray, 0.0, remaining) else {
             return tr;
         };
-        let m = &inp.gpu.materials[hit.tag.material as usize];
+        let m = &inp.flat.materials[hit.tag.material as usize];
         // Emissive surfaces are lights (their stand-ins sit inside them): they cast no shadow.
         if m.flags & MATERIAL_ALPHA != 0 {
-            let s = surface::surface(inp.gpu, m, hit.prim_ref, ray.at(hit.t), hit.normal);
+            let s = surface::surface(inp.flat, m, hit.prim_ref, ray.at(hit.t), hit.normal);
             tr = tr * (1.0 - surface::coverage(m, s.alpha));
             if tr.max_component() <= 0.0 {
                 return V3::zero();
@@ -75,8 +75,8 @@ fn shadow_transmittance(inp: &ShadeInputs, from: &Ray<f32>, t: f32, n: V3<f32>, 
 fn direct_light(inp: &ShadeInputs, ray: &Ray<f32>, t: f32, ng: V3<f32>, ns: V3<f32>, albedo: V3<f32>) -> V3<f32> {
     let p = ray.at(t);
     // The environment's unshadowed diffuse light joins the ambient term.
-    let mut sum = V3::from_array(inp.frame.ambient) + environment::diffuse(inp.gpu, ns);
-    for light in &inp.gpu.lights[..inp.frame.num_lights as usize] {
+    let mut sum = V3::from_array(inp.frame.ambient) + environment::diffuse(inp.flat, ns);
+    for light in &inp.flat.lights[..inp.frame.num_lights as usize] {
         let (l, dist, e) = light_at(light, p);
         let cos = ns.dot(l);
         if cos <= 0.0 || ng.dot(l) <= 0.0 {
@@ -90,7 +90,7 @@ fn direct_light(inp: &ShadeInputs, ray: &Ray<f32>, t: f32, ng: V3<f32>, ns: V3<f
 
 /// Unit vector to the light, its distance, and the irradiance it gives a surface facing it.
 #[inline]
-fn light_at(light: &GpuLight, p: V3<f32>) -> (V3<f32>, f32, V3<f32>) {
+fn light_at(light: &FlatLight, p: V3<f32>) -> (V3<f32>, f32, V3<f32>) {
     let v = V3::from_array(light.vector);
     let i = V3::from_array(light.intensity);
     if light.kind == LIGHT_POINT {
@@ -126,12 +126,12 @@ pub fn radiance_from(inp: &ShadeInputs, ray: Ray<f32>, first: Option<Option<Hit<
             None => wide_traverse::nearest(inp.wide, inp.prims, &ray, 0.0, f32::INFINITY),
         };
         let Some(hit) = found else {
-            color += weight.mul_elem(environment::background(inp.gpu, inp.frame, ray.dir));
+            color += weight.mul_elem(environment::background(inp.flat, inp.frame, ray.dir));
             continue;
         };
-        let untextured = &inp.gpu.materials[hit.tag.material as usize];
-        let s = surface::surface(inp.gpu, untextured, hit.prim_ref, ray.at(hit.t), hit.normal);
-        let m: &GpuMaterial = &s.m;
+        let untextured = &inp.flat.materials[hit.tag.material as usize];
+        let s = surface::surface(inp.flat, untextured, hit.prim_ref, ray.at(hit.t), hit.normal);
+        let m: &FlatMaterial = &s.m;
         let mut weight = weight;
         if m.flags & MATERIAL_ALPHA != 0 {
             // What the surface lets through goes on as a ray of its own (no bounce); the

@@ -152,7 +152,7 @@ pub fn pack_texels(g: &FlatScene) -> Vec<u32> {
 mod tests {
     use super::*;
     use strahl_core::layout::{
-        GpuCylinder, GpuEmitter, GpuEnvironment, GpuLight, GpuMaterial, GpuPlane, GpuSphere, GpuTexture,
+        FlatCylinder, FlatEmitter, FlatEnvironment, FlatLight, FlatMaterial, FlatPlane, FlatSphere, FlatTexture,
     };
 
     /// Every element type of the objects buffer is whole words, so its elements are read at
@@ -161,29 +161,29 @@ mod tests {
     fn every_element_is_whole_words_with_the_shaders_stride() {
         let bindings = include_str!("../shaders/modules/bindings.wgsl");
         for (name, size, slot) in [
-            ("load_sphere", size_of::<GpuSphere>(), "OBJ_SPHERES"),
-            ("load_cylinder", size_of::<GpuCylinder>(), "OBJ_CYLINDERS"),
-            ("load_plane", size_of::<GpuPlane>(), "OBJ_PLANES"),
-            ("load_material", size_of::<GpuMaterial>(), "OBJ_MATERIALS"),
-            ("load_light", size_of::<GpuLight>(), "OBJ_LIGHTS"),
-            ("load_texture", size_of::<GpuTexture>(), "OBJ_TEXTURES"),
+            ("load_sphere", size_of::<FlatSphere>(), "OBJ_SPHERES"),
+            ("load_cylinder", size_of::<FlatCylinder>(), "OBJ_CYLINDERS"),
+            ("load_plane", size_of::<FlatPlane>(), "OBJ_PLANES"),
+            ("load_material", size_of::<FlatMaterial>(), "OBJ_MATERIALS"),
+            ("load_light", size_of::<FlatLight>(), "OBJ_LIGHTS"),
+            ("load_texture", size_of::<FlatTexture>(), "OBJ_TEXTURES"),
         ] {
             assert_eq!(size % WORD, 0, "{name}");
             let want = format!("object_slot({slot}) + {}u * i;", size / WORD);
             let body = bindings.split(&format!("fn {name}(")).nth(1).expect(name);
             assert!(body.lines().nth(1).unwrap().contains(&want), "{name} reads with stride {}: {want}", size / WORD);
         }
-        assert_eq!(size_of::<GpuEmitter>(), WORD);
-        assert_eq!(size_of::<GpuEnvironment>(), 12 * WORD);
+        assert_eq!(size_of::<FlatEmitter>(), WORD);
+        assert_eq!(size_of::<FlatEnvironment>(), 12 * WORD);
     }
 
     #[test]
     fn arrays_start_where_the_header_says_and_hold_their_bytes() {
         let g = FlatScene {
-            spheres: vec![GpuSphere { center: [1.0, 2.0, 3.0], radius: 0.5, object: 7, ..Default::default() }; 3],
-            planes: vec![GpuPlane { normal: [0.0, 1.0, 0.0], material: 2, ..Default::default() }],
+            spheres: vec![FlatSphere { center: [1.0, 2.0, 3.0], radius: 0.5, object: 7, ..Default::default() }; 3],
+            planes: vec![FlatPlane { normal: [0.0, 1.0, 0.0], material: 2, ..Default::default() }],
             shape_refs: vec![11, 12, 13, 14, 15],
-            materials: vec![GpuMaterial::default(); 2],
+            materials: vec![FlatMaterial::default(); 2],
             texels: vec![9; 6],
             env_distribution: vec![0.25, 1.0],
             ..Default::default()
@@ -196,7 +196,7 @@ mod tests {
         assert_eq!((h.cylinders, h.planes), (h.spheres + 6, h.spheres + 6));
         assert_eq!(h.shape_refs, h.planes + 2);
         assert_eq!(h.materials, h.shape_refs + 2, "five references take two words");
-        let sphere: GpuSphere =
+        let sphere: FlatSphere =
             bytemuck::pod_read_unaligned(bytemuck::cast_slice(&words[h.spheres as usize + 4..][..2]));
         assert_eq!(sphere, g.spheres[2]);
         assert_eq!(words[h.shape_refs as usize + 1], [15, 0, 0, 0]);

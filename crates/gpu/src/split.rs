@@ -21,7 +21,7 @@
 
 use super::{FeatureKey, GpuError, SCENE_BINDINGS};
 use strahl_core::accel::gpu_bvh::{GpuLeafTriangle, GpuNode};
-use strahl_core::layout::GpuTriangle;
+use strahl_core::layout::FlatTriangle;
 
 /// Bits of the key for one array's part count minus one.
 const PART_BITS: u32 = 2;
@@ -62,7 +62,7 @@ impl SplitArray {
     /// Bytes of one element.
     pub fn element_bytes(self) -> u64 {
         (match self {
-            SplitArray::Triangles => size_of::<GpuTriangle>(),
+            SplitArray::Triangles => size_of::<FlatTriangle>(),
             SplitArray::Nodes => size_of::<GpuNode>(),
             SplitArray::LeafTriangles => size_of::<GpuLeafTriangle>(),
         }) as u64

@@ -188,7 +188,7 @@ impl Viewer {
         let ctx = GpuContext::from_device(rs.device.clone(), rs.queue.clone(), rs.adapter.get_info())?;
         let ctx = Arc::new(ctx);
         eprintln!("adapter: {}", ctx.adapter_name());
-        let buffers = SceneBuffers::upload(&ctx, &prep.gpu)?;
+        let buffers = SceneBuffers::upload(&ctx, &prep.flat)?;
         let full_key = buffers.key;
         let save_path = {
             let stem = opts.scene.file_stem().map_or("view".into(), |s| s.to_string_lossy().into_owned());

@@ -46,7 +46,7 @@ pub fn load(path: &Path) -> Result<Prepared, String> {
 
 impl Viewer {
     pub(super) fn install(&mut self, prep: Prepared) {
-        match SceneBuffers::upload(&self.gpu.ctx, &prep.gpu) {
+        match SceneBuffers::upload(&self.gpu.ctx, &prep.flat) {
             Ok(b) => {
                 self.buffers = b;
                 self.prep = Arc::new(prep);
@@ -146,7 +146,7 @@ mod tests {
         let mut visible = vec![true; n];
         visible[1] = false;
         let some = Prepared::with_visible(scene.clone(), &visible);
-        let ids = |p: &Prepared| p.gpu.spheres.iter().map(|s| s.object).collect::<Vec<_>>();
+        let ids = |p: &Prepared| p.flat.spheres.iter().map(|s| s.object).collect::<Vec<_>>();
         assert_eq!(ids(&all).len(), ids(&some).len() + 1);
         assert!(ids(&some).iter().all(|&o| o != 1) && ids(&some).contains(&2));
         assert!(object_label(&scene, 0).starts_with("0 sphere"));

@@ -27,7 +27,7 @@ impl Loaded {
     pub fn new(ctx: &GpuContext, name: &str, bytes: &[u8]) -> Result<Self, String> {
         let scene = Scene::from_bytes(Path::new(name), bytes, &LoadOptions::default()).map_err(|e| e.to_string())?;
         let prep = Prepared::try_new(scene).map_err(|e| e.to_string())?;
-        let buffers = SceneBuffers::upload(ctx, &prep.gpu).map_err(|e| e.to_string())?;
+        let buffers = SceneBuffers::upload(ctx, &prep.flat).map_err(|e| e.to_string())?;
         Ok(Self { prep: Arc::new(prep), buffers })
     }
 

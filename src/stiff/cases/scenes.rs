@@ -142,7 +142,7 @@ fn render_on(
         Variant::Cpu => Some(strahl_cpu::render(&strahl_cpu::CpuScene::new(prep), frame, RenderMode::Whitted, &|_| {})),
         Variant::Gpu => {
             let ctx = opt.gpu.expect("gpu");
-            let b = SceneBuffers::upload(ctx, &prep.gpu)?;
+            let b = SceneBuffers::upload(ctx, &prep.flat)?;
             Some(strahl_gpu::tiles::render(ctx, &b, frame, RenderMode::Whitted, b.key, &|_, _| {})?.0)
         }
         Variant::Textbook => None,

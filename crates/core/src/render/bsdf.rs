@@ -8,7 +8,7 @@
 
 use super::microfacet::{ggx_d, ggx_lambda, ggx_sample_visible, schlick};
 use super::pbr::{pbr_fresnel, pbr_lobes};
-use crate::layout::GpuMaterial;
+use crate::layout::FlatMaterial;
 use crate::math::V3;
 use crate::scene::MaterialKind;
 
@@ -29,7 +29,7 @@ pub struct BsdfSample {
 }
 
 /// f·cos θ_i and the density of the pbr material (both lobes).
-fn pbr_eval(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>) -> (V3<f32>, f32) {
+fn pbr_eval(m: &FlatMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>) -> (V3<f32>, f32) {
     let (cos_o, cos_i) = (wo.dot(ns), wi.dot(ns));
     if cos_o <= 0.0 || cos_i <= 0.0 {
         return (V3::zero(), 0.0);
@@ -51,7 +51,7 @@ fn pbr_eval(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>) -> (V3<f32>,
 }
 
 /// A direction from the pbr material: `u[0]` picks the lobe, `u[1]`, `u[2]` the direction.
-fn pbr_sample(m: &GpuMaterial, wo: V3<f32>, ns: V3<f32>, u: [f32; 3]) -> Option<BsdfSample> {
+fn pbr_sample(m: &FlatMaterial, wo: V3<f32>, ns: V3<f32>, u: [f32; 3]) -> Option<BsdfSample> {
     let cos_o = wo.dot(ns);
     if cos_o <= 0.0 {
         return None;
@@ -75,7 +75,7 @@ fn pbr_sample(m: &GpuMaterial, wo: V3<f32>, ns: V3<f32>, u: [f32; 3]) -> Option<
 
 /// Whether the material scatters only into isolated directions (no next-event estimation).
 #[inline]
-pub fn is_specular(m: &GpuMaterial) -> bool {
+pub fn is_specular(m: &FlatMaterial) -> bool {
     m.kind() == MaterialKind::Dielectric || (m.kind() == MaterialKind::Mirror && m.roughness < MIN_ROUGHNESS)
 }
 
@@ -111,7 +111,7 @@ pub fn cosine_hemisphere(u1: f32, u2: f32) -> V3<f32> {
 }
 
 /// f·cos θ_i and the density [`sample`] would choose `wi` with, for a non-specular material.
-pub fn eval(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>) -> (V3<f32>, f32) {
+pub fn eval(m: &FlatMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>) -> (V3<f32>, f32) {
     let cos_i = wi.dot(ns);
     if cos_i <= 0.0 {
         return (V3::zero(), 0.0);
@@ -144,7 +144,7 @@ pub fn eval(m: &GpuMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>) -> (V3<f32>,
 /// Chooses the next direction with three uniform numbers `u`; `front`: the ray arrived on the
 /// front face (outside a dielectric). None: the path ends (absorbed, or a sampled direction
 /// fell below the surface).
-pub fn sample(m: &GpuMaterial, wo: V3<f32>, ns: V3<f32>, front: bool, u: [f32; 3]) -> Option<BsdfSample> {
+pub fn sample(m: &FlatMaterial, wo: V3<f32>, ns: V3<f32>, front: bool, u: [f32; 3]) -> Option<BsdfSample> {
     if m.kind() == MaterialKind::Pbr {
         return pbr_sample(m, wo, ns, u);
     }
@@ -223,8 +223,8 @@ mod tests {
     use crate::render::sampler::Sampler;
     use std::f32::consts::PI;
 
-    fn material(kind: MaterialKind, color: f32, roughness: f32) -> GpuMaterial {
-        GpuMaterial { color: [color; 3], kind: kind as u32, ior: 1.5, roughness, ..Default::default() }
+    fn material(kind: MaterialKind, color: f32, roughness: f32) -> FlatMaterial {
+        FlatMaterial { color: [color; 3], kind: kind as u32, ior: 1.5, roughness, ..Default::default() }
     }
 
     #[test]
@@ -275,14 +275,14 @@ mod tests {
         assert_eq!(s.weight, V3::splat(0.8));
     }
 
-    fn pbr(base: f32, metallic: f32, roughness: f32) -> GpuMaterial {
-        GpuMaterial { color: [base; 3], kind: MaterialKind::Pbr as u32, roughness, metallic, ..Default::default() }
+    fn pbr(base: f32, metallic: f32, roughness: f32) -> FlatMaterial {
+        FlatMaterial { color: [base; 3], kind: MaterialKind::Pbr as u32, roughness, metallic, ..Default::default() }
     }
 
     /// The albedo of the pbr material from `wo`, by sampling (mean weight), and by integrating
     /// eval over uniform directions; and the largest disagreement between a sample's density
     /// and what eval reports for its direction.
-    fn pbr_albedo(m: &GpuMaterial, wo: V3<f32>, n: usize) -> (f64, f64) {
+    fn pbr_albedo(m: &FlatMaterial, wo: V3<f32>, n: usize) -> (f64, f64) {
         let ns = V3::new(0.0, 0.0, 1.0);
         let mut rng = Sampler::new(9, 8, 7);
         let (mut by_sampling, mut by_uniform) = (0.0f64, 0.0f64);

@@ -18,7 +18,7 @@
 //! scene through paths that hit them, with MIS weight 1. The emitter table itself is built with
 //! the rest of the flattened scene ([`super::flatten`]).
 
-use crate::layout::{FlatScene, FrameParams, GpuEmitter, GpuLight, LIGHT_POINT, LIGHT_STAND_IN, MATERIAL_TWO_SIDED};
+use crate::layout::{FlatEmitter, FlatLight, FlatScene, FrameParams, LIGHT_POINT, LIGHT_STAND_IN, MATERIAL_TWO_SIDED};
 use crate::math::V3;
 use crate::primitives::{PrimKind, PrimRef};
 
@@ -29,7 +29,7 @@ pub(super) fn mean(c: [f32; 3]) -> f32 {
 
 /// Index of the emitter `u` ∈ [0, 1) selects: the first whose cdf exceeds `u`.
 #[inline]
-pub fn select(emitters: &[GpuEmitter], u: f32) -> usize {
+pub fn select(emitters: &[FlatEmitter], u: f32) -> usize {
     let (mut lo, mut hi) = (0usize, emitters.len() - 1);
     while lo < hi {
         let mid = (lo + hi) / 2;
@@ -61,7 +61,7 @@ pub struct LightSample {
 /// Point or directional light `l` seen from shading point `p`: its direction, distance and
 /// irradiance at normal incidence. None for a Whitted stand-in (path mode samples the
 /// emissive object itself) and for a point light at `p`.
-pub fn delta_light(l: &GpuLight, p: V3<f32>) -> Option<LightSample> {
+pub fn delta_light(l: &FlatLight, p: V3<f32>) -> Option<LightSample> {
     if l.flags & LIGHT_STAND_IN != 0 {
         return None;
     }
@@ -158,7 +158,7 @@ mod tests {
 
     #[test]
     fn selection_inverts_the_cdf() {
-        let e = |cdf| GpuEmitter { cdf, ..Default::default() };
+        let e = |cdf| FlatEmitter { cdf, ..Default::default() };
         let table = [e(0.25), e(0.5), e(1.0)];
         assert_eq!(select(&table, 0.0), 0);
         assert_eq!(select(&table, 0.2499), 0);

@@ -24,7 +24,7 @@
 //! (clamped at 0) around a small bright sun.
 
 use super::texture;
-use crate::layout::{ENV_MAP, ENV_UNIFORM, FlatScene, FrameParams, GpuEnvironment};
+use crate::layout::{ENV_MAP, ENV_UNIFORM, FlatEnvironment, FlatScene, FrameParams};
 use crate::math::{Real, V3};
 use crate::scene::{EnvSampling, Environment, texture::Texels};
 
@@ -66,10 +66,10 @@ fn luminance(c: [f32; 3]) -> f64 {
 /// distribution: the marginal cumulative distribution over rows (height + 1 values), then
 /// each row's over columns (width + 1 values each). `emitters`: the scene also has area
 /// emitters, which next-event estimation then chooses with probability 1 − `select`.
-pub fn build(env: &Environment, texture: u32, emitters: bool) -> (GpuEnvironment, Vec<f32>) {
+pub fn build(env: &Environment, texture: u32, emitters: bool) -> (FlatEnvironment, Vec<f32>) {
     let s = env.strength;
     let (sin, cos) = env.rotation_deg.to_radians().sin_cos();
-    let mut g = GpuEnvironment {
+    let mut g = FlatEnvironment {
         radiance: env.radiance.map(|c| (c * s) as f32),
         flags: 0,
         rot_cos: cos as f32,
@@ -181,19 +181,19 @@ pub fn build(env: &Environment, texture: u32, emitters: bool) -> (GpuEnvironment
 
 /// `d` turned from the world into the map's frame (the inverse of `rotation`).
 #[inline]
-fn to_map(e: &GpuEnvironment, d: V3<f32>) -> V3<f32> {
+fn to_map(e: &FlatEnvironment, d: V3<f32>) -> V3<f32> {
     V3::new(e.rot_cos * d.x - e.rot_sin * d.z, d.y, e.rot_sin * d.x + e.rot_cos * d.z)
 }
 
 /// `d` turned from the map's frame into the world.
 #[inline]
-fn from_map(e: &GpuEnvironment, d: V3<f32>) -> V3<f32> {
+fn from_map(e: &FlatEnvironment, d: V3<f32>) -> V3<f32> {
     V3::new(e.rot_cos * d.x + e.rot_sin * d.z, d.y, -e.rot_sin * d.x + e.rot_cos * d.z)
 }
 
 /// Map coordinates (u, v) of the world direction `d` (unit).
 #[inline]
-fn map_uv(e: &GpuEnvironment, d: V3<f32>) -> (f32, f32) {
+fn map_uv(e: &FlatEnvironment, d: V3<f32>) -> (f32, f32) {
     let m = to_map(e, d);
     (0.5 + crate::math::atan2(m.x, m.z) * (0.5 / PI), crate::math::acos(m.y) * (1.0 / PI))
 }
@@ -229,7 +229,7 @@ fn find_cell(cdf: &[f32], u: f32) -> usize {
 
 /// Density of the map's distribution at cell (i, j), over (u, v) ∈ [0, 1]².
 #[inline(always)]
-pub fn cell_pdf(g: &FlatScene, e: &GpuEnvironment, i: usize, j: usize) -> f32 {
+pub fn cell_pdf(g: &FlatScene, e: &FlatEnvironment, i: usize, j: usize) -> f32 {
     let (w, h) = (e.width as usize, e.height as usize);
     let marginal = &g.env_distribution[..h + 1];
     let row = &g.env_distribution[h + 1 + j * (w + 1)..h + 1 + (j + 1) * (w + 1)];

@@ -27,7 +27,7 @@ impl FlatScene {
                 .iter()
                 .map(|Tagged { shape: s, tag: t }| {
                     let (object, face, material) = tag(t);
-                    GpuSphere { center: s.center.to_array(), radius: s.radius, object, face, material, _pad: 0 }
+                    FlatSphere { center: s.center.to_array(), radius: s.radius, object, face, material, _pad: 0 }
                 })
                 .collect(),
             cylinders: prims
@@ -35,7 +35,7 @@ impl FlatScene {
                 .iter()
                 .map(|Tagged { shape: c, tag: t }| {
                     let (object, face, material) = tag(t);
-                    GpuCylinder {
+                    FlatCylinder {
                         pa: c.p1.to_array(),
                         radius: c.radius,
                         pb: c.p2.to_array(),
@@ -50,7 +50,7 @@ impl FlatScene {
             planes: prims
                 .planes
                 .iter()
-                .map(|Tagged { shape: p, tag: t }| GpuPlane {
+                .map(|Tagged { shape: p, tag: t }| FlatPlane {
                     point: p.point.to_array(),
                     object: t.object,
                     normal: p.normal.to_array(),
@@ -60,7 +60,7 @@ impl FlatScene {
             triangles: prims
                 .triangles
                 .iter()
-                .map(|Tagged { shape: tri, tag: t }| GpuTriangle {
+                .map(|Tagged { shape: tri, tag: t }| FlatTriangle {
                     va: tri.v[0].to_array(),
                     object: t.object,
                     vb: tri.v[1].to_array(),
@@ -75,7 +75,7 @@ impl FlatScene {
             materials: scene
                 .materials
                 .iter()
-                .map(|m| GpuMaterial {
+                .map(|m| FlatMaterial {
                     color: rgb(m.color),
                     kind: m.kind as u32,
                     radiance: rgb(m.radiance),
@@ -106,13 +106,13 @@ impl FlatScene {
                 .lights
                 .iter()
                 .map(|l| match l {
-                    Light::Point { position, intensity } => GpuLight {
+                    Light::Point { position, intensity } => FlatLight {
                         vector: position.cast::<f32>().to_array(),
                         kind: LIGHT_POINT,
                         intensity: rgb(*intensity),
                         flags: 0,
                     },
-                    Light::Directional { direction, intensity } => GpuLight {
+                    Light::Directional { direction, intensity } => FlatLight {
                         vector: direction.cast::<f32>().normalize().to_array(),
                         kind: LIGHT_DIRECTIONAL,
                         intensity: rgb(*intensity),
@@ -173,7 +173,7 @@ pub fn needs_attributes(scene: &Scene) -> bool {
 /// at its centre whose intensity is its radiance times its (projected) area, the on-axis
 /// intensity of a Lambertian emitter. Shadow rays pass through emissive surfaces, so the
 /// object does not hide its own stand-in. Planes have no finite area and get none.
-pub fn stand_in_lights(scene: &Scene) -> Vec<GpuLight> {
+pub fn stand_in_lights(scene: &Scene) -> Vec<FlatLight> {
     // The radiance each emissive material gives off on average (its texture's mean included),
     // computed once per material: a texture's mean reads every texel, and a mesh asks per
     // triangle.
@@ -194,7 +194,7 @@ pub fn stand_in_lights(scene: &Scene) -> Vec<GpuLight> {
     let mut out = Vec::new();
     let mut push = |centre: V3<f64>, area: f64, radiance: [f64; 3]| {
         if area > 0.0 {
-            out.push(GpuLight {
+            out.push(FlatLight {
                 vector: centre.cast::<f32>().to_array(),
                 kind: LIGHT_POINT,
                 intensity: radiance.map(|c| (c * area) as f32),
@@ -244,7 +244,7 @@ fn area_centroid(tris: &[crate::geometry::Triangle<f64>]) -> (V3<f64>, f64) {
 }
 
 /// The area-emitter table of `g` and 1 / Σ weights.
-pub fn build_emitters(g: &FlatScene) -> (Vec<GpuEmitter>, f32) {
+pub fn build_emitters(g: &FlatScene) -> (Vec<FlatEmitter>, f32) {
     let emissive = |material: u32| {
         let m = &g.materials[material as usize];
         (m.is_light() && super::emitters::mean(m.radiance) > 0.0).then(|| super::emitters::mean(m.radiance) as f64)
@@ -278,7 +278,7 @@ pub fn build_emitters(g: &FlatScene) -> (Vec<GpuEmitter>, f32) {
         .map(|(k, (source, kind, w))| {
             cum += w;
             let cdf = if k + 1 == n { 1.0 } else { (cum / total) as f32 };
-            GpuEmitter { source, kind, cdf, pdf: (w / total) as f32 }
+            FlatEmitter { source, kind, cdf, pdf: (w / total) as f32 }
         })
         .collect();
     (emitters, (1.0 / total) as f32)

@@ -35,7 +35,7 @@ pub struct Prepared {
     pub scene: Scene,
     pub prims: Primitives<f32>,
     pub bvh: Bvh,
-    pub gpu: FlatScene,
+    pub flat: FlatScene,
     /// Time spent building the BVH (the binary tree).
     pub build_time: Duration,
     /// Time spent preparing the whole scene: its primitives, the tree and the flat layout
@@ -117,8 +117,8 @@ impl Prepared {
         let built = Instant::now();
         let bvh = Bvh::build(&prims);
         let build_time = built.elapsed();
-        let gpu = FlatScene::new(&scene, &prims, &bvh);
-        Self { scene, prims, bvh, gpu, build_time, prepare_time: start.elapsed() }
+        let flat = FlatScene::new(&scene, &prims, &bvh);
+        Self { scene, prims, bvh, flat, build_time, prepare_time: start.elapsed() }
     }
 
     /// [`Prepared::frame`] seen from `view` instead of the scene's camera (the viewer's and
@@ -138,13 +138,13 @@ impl Prepared {
         f.max_depth = s.max_depth;
         f.background = s.background.map(|c| c as f32);
         f.ambient = s.ambient.map(|c| c as f32);
-        f.num_lights = self.gpu.lights.len() as u32;
-        f.num_emitters = self.gpu.emitters.len() as u32;
-        f.emitter_norm = self.gpu.emitter_norm;
+        f.num_lights = self.flat.lights.len() as u32;
+        f.num_emitters = self.flat.emitters.len() as u32;
+        f.emitter_norm = self.flat.emitter_norm;
         f.rr_depth = limits::RR_DEPTH;
         f.tile_size = [width, height];
         f.out_pitch = width;
-        if !self.gpu.environment.is_empty() {
+        if !self.flat.environment.is_empty() {
             f.flags |= crate::layout::FRAME_ENVIRONMENT;
         }
         f

@@ -13,7 +13,7 @@
 //! table's 0.2 %. Sampling picks the lobe or the base in proportion to their albedos at μo.
 
 use super::microfacet;
-use crate::layout::GpuMaterial;
+use crate::layout::FlatMaterial;
 use crate::math::V3;
 
 /// The pbr material's α is at least this (perceptual roughness 0.032): its lobe stays a
@@ -49,7 +49,7 @@ fn luminance(c: V3<f32>) -> f32 {
 }
 
 /// The lobes of pbr material `m` seen at cos θ_o = `cos_o`.
-pub fn pbr_lobes(m: &GpuMaterial, cos_o: f32) -> PbrLobes {
+pub fn pbr_lobes(m: &FlatMaterial, cos_o: f32) -> PbrLobes {
     let base = V3::from_array(m.color);
     let metal = m.metallic.clamp(0.0, 1.0);
     let r = m.roughness.clamp(0.0, 1.0);

@@ -14,7 +14,7 @@
 
 use super::texture::{barycentrics, sample_rgba};
 use crate::layout::{
-    ATTR_COLORS, ATTR_NORMALS, FlatScene, GpuMaterial, GpuTexture, GpuTriangleAttrs, MATERIAL_ALPHA_BLEND,
+    ATTR_COLORS, ATTR_NORMALS, FlatMaterial, FlatScene, FlatTexture, FlatTriangleAttrs, MATERIAL_ALPHA_BLEND,
     MATERIAL_ALPHA_MASK, MATERIAL_UNLIT, TEXTURE_UV1,
 };
 use crate::math::V3;
@@ -25,7 +25,7 @@ use crate::scene::MaterialKind;
 #[derive(Clone, Copy, Debug)]
 pub struct Surface {
     /// The material with textures and vertex colours applied.
-    pub m: GpuMaterial,
+    pub m: FlatMaterial,
     /// The unit shading normal, on the side of the geometric normal the hit was given.
     pub normal: V3<f32>,
     /// The material's alpha times its colour texture's and the vertex colours' alpha.
@@ -55,7 +55,7 @@ fn decode_unorm8x4(w: u32) -> [f32; 4] {
 /// materials and MASK alpha at or above the cut-off, 0 below it, alpha itself (clamped) for
 /// BLEND.
 #[inline]
-pub fn coverage(m: &GpuMaterial, alpha: f32) -> f32 {
+pub fn coverage(m: &FlatMaterial, alpha: f32) -> f32 {
     if m.flags & MATERIAL_ALPHA_MASK != 0 {
         if alpha >= m.alpha_cutoff { 1.0 } else { 0.0 }
     } else if m.flags & MATERIAL_ALPHA_BLEND != 0 {
@@ -74,7 +74,7 @@ fn unit(v: V3<f32>) -> bool {
 
 /// Texture coordinates through a use's transform.
 #[inline]
-fn transformed(t: &GpuTexture, uv: [f32; 2]) -> [f32; 2] {
+fn transformed(t: &FlatTexture, uv: [f32; 2]) -> [f32; 2] {
     let [a, b, d, e] = t.linear;
     [a * uv[0] + b * uv[1] + t.offset_uv[0], d * uv[0] + e * uv[1] + t.offset_uv[1]]
 }
@@ -87,7 +87,7 @@ fn lerp_uv(uv: &[[f32; 2]; 3], w: [f32; 3]) -> [f32; 2] {
 /// Texture `texture` (1 + index; 0: none, then 1) at weights `w` of a triangle with attributes
 /// `a`, through the coordinates and transform of its use.
 #[inline]
-fn texture_at(g: &FlatScene, a: &GpuTriangleAttrs, texture: u32, w: [f32; 3]) -> [f32; 4] {
+fn texture_at(g: &FlatScene, a: &FlatTriangleAttrs, texture: u32, w: [f32; 3]) -> [f32; 4] {
     if texture == 0 {
         return [1.0; 4];
     }
@@ -100,7 +100,7 @@ fn texture_at(g: &FlatScene, a: &GpuTriangleAttrs, texture: u32, w: [f32; 3]) ->
 /// The radiance an area light (an emissive or pbr material, not unlit) of material `m` gives
 /// off at point `p` of primitive `prim`: what [`surface`] gives as `m.radiance`, without the
 /// rest of its work (next-event estimation asks at every sampled light point).
-pub fn emission(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>) -> V3<f32> {
+pub fn emission(g: &FlatScene, m: &FlatMaterial, prim: PrimRef, p: V3<f32>) -> V3<f32> {
     let radiance = V3::from_array(m.radiance);
     if m.radiance_texture == 0 || prim.kind() != PrimKind::Triangle || g.triangle_attrs.is_empty() {
         return radiance;
@@ -113,7 +113,7 @@ pub fn emission(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>) -> V3
 }
 
 /// Material `m` at the point `p` of primitive `prim`, whose geometric normal there is `n`.
-pub fn surface(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>, n: V3<f32>) -> Surface {
+pub fn surface(g: &FlatScene, m: &FlatMaterial, prim: PrimRef, p: V3<f32>, n: V3<f32>) -> Surface {
     let mut s = Surface { m: *m, normal: n, alpha: m.alpha };
     if prim.kind() != PrimKind::Triangle || g.triangle_attrs.is_empty() {
         return s;
@@ -124,7 +124,7 @@ pub fn surface(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>, n: V3<
     let (beta, gamma) = barycentrics(va, vb, vc, p);
     let w = [1.0 - beta - gamma, beta, gamma];
     let a = &g.triangle_attrs[i];
-    let uv_set = |t: &GpuTexture| if t.flags & TEXTURE_UV1 != 0 { &a.second_uv } else { &a.uv };
+    let uv_set = |t: &FlatTexture| if t.flags & TEXTURE_UV1 != 0 { &a.second_uv } else { &a.uv };
     let look = |texture: u32| texture_at(g, a, texture, w);
     let mut vertex = V3::splat(1.0);
     let mut vertex_alpha = 1.0;
@@ -188,7 +188,7 @@ pub fn surface(g: &FlatScene, m: &GpuMaterial, prim: PrimRef, p: V3<f32>, n: V3<
 /// Dielectrics refract about the face's normal. Mirrors and pbr surfaces reflect about a normal
 /// bent back towards the face's as far as [`reflecting_normal`] needs.
 #[inline]
-pub fn shading_frame(m: &GpuMaterial, front: bool, n: V3<f32>, shading: V3<f32>, wo: V3<f32>) -> (V3<f32>, V3<f32>) {
+pub fn shading_frame(m: &FlatMaterial, front: bool, n: V3<f32>, shading: V3<f32>, wo: V3<f32>) -> (V3<f32>, V3<f32>) {
     let ng = if front { n } else { -n };
     let ns = if front { shading } else { -shading };
     if m.kind() == MaterialKind::Dielectric || ns.dot(wo) <= 0.0 {

@@ -13,7 +13,7 @@
 //! 128 MiB, 32 M colour texels); the error says so before anything is allocated.
 
 use crate::layout::{
-    ATTR_COLORS, ATTR_NORMALS, GpuTexture, GpuTriangleAttrs, SRGB_TABLE_WORDS, TEXTURE_DATA, TEXTURE_LINEAR_RGB,
+    ATTR_COLORS, ATTR_NORMALS, FlatTexture, FlatTriangleAttrs, SRGB_TABLE_WORDS, TEXTURE_DATA, TEXTURE_LINEAR_RGB,
     TEXTURE_NEAREST, TEXTURE_UV1, TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT, encode_octahedral, encode_unorm8x4,
 };
 use crate::math::V3;
@@ -25,7 +25,7 @@ use std::sync::Arc;
 
 /// The texture table and the texel buffer of `textures` (uses of images), in order; uses of
 /// one image (the same shared texels) share its words.
-pub fn pack<'a>(textures: impl Iterator<Item = &'a Texture>) -> (Vec<GpuTexture>, Vec<u32>) {
+pub fn pack<'a>(textures: impl Iterator<Item = &'a Texture>) -> (Vec<FlatTexture>, Vec<u32>) {
     let mut texels: Vec<u32> = (0..=255u8).map(|c| srgb_to_linear(c).to_bits()).collect();
     debug_assert_eq!(texels.len(), SRGB_TABLE_WORDS as usize);
     let mut infos = Vec::new();
@@ -53,7 +53,7 @@ pub fn pack<'a>(textures: impl Iterator<Item = &'a Texture>) -> (Vec<GpuTexture>
             offset
         });
         let [a, b, c, d, e, f] = t.transform;
-        infos.push(GpuTexture {
+        infos.push(FlatTexture {
             width: t.width,
             height: t.height,
             offset,
@@ -68,14 +68,14 @@ pub fn pack<'a>(textures: impl Iterator<Item = &'a Texture>) -> (Vec<GpuTexture>
 
 /// What every triangle of `prims` (scene order) carries from the mesh it came from (texture
 /// coordinates, shading normals, colours); zeros and no flags for triangles without any.
-pub fn triangle_attrs(scene: &Scene, prims: &Primitives<f32>) -> Vec<GpuTriangleAttrs> {
+pub fn triangle_attrs(scene: &Scene, prims: &Primitives<f32>) -> Vec<FlatTriangleAttrs> {
     prims
         .triangles
         .iter()
         .map(|t| match &scene.objects[t.tag.object as usize].geometry {
             Geometry::Mesh { attrs, .. } => {
                 let f = t.tag.face as usize;
-                let mut out = GpuTriangleAttrs::default();
+                let mut out = FlatTriangleAttrs::default();
                 if let Some(uv) = attrs.uvs.get(f) {
                     out.uv = *uv;
                 }
@@ -92,7 +92,7 @@ pub fn triangle_attrs(scene: &Scene, prims: &Primitives<f32>) -> Vec<GpuTriangle
                 }
                 out
             }
-            _ => GpuTriangleAttrs::default(),
+            _ => FlatTriangleAttrs::default(),
         })
         .collect()
 }
@@ -130,7 +130,7 @@ pub fn wrap_index(i: i32, n: i32, mode: u32) -> i32 {
 
 /// Texel (x, y) of texture `t`: linear RGB and alpha (1 for radiance maps).
 #[inline(always)]
-pub fn texel(texels: &[u32], t: &GpuTexture, x: i32, y: i32) -> [f32; 4] {
+pub fn texel(texels: &[u32], t: &FlatTexture, x: i32, y: i32) -> [f32; 4] {
     let i = y as u32 * t.width + x as u32;
     if t.flags & TEXTURE_LINEAR_RGB != 0 {
         let k = (t.offset + 3 * i) as usize;
@@ -168,7 +168,7 @@ pub fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
 /// Texture `t` at (u, v) (v = 0 is the image's top row; the use's transform is applied by the
 /// caller, [`super::surface`]): bilinear between the four nearest texel centres, or the
 /// nearest texel. RGB and alpha.
-pub fn sample_rgba(texels: &[u32], t: &GpuTexture, u: f32, v: f32) -> [f32; 4] {
+pub fn sample_rgba(texels: &[u32], t: &FlatTexture, u: f32, v: f32) -> [f32; 4] {
     let (w, h) = (t.width as i32, t.height as i32);
     let (wu, wv) = ((t.flags >> TEXTURE_WRAP_U_SHIFT) & 3, (t.flags >> TEXTURE_WRAP_V_SHIFT) & 3);
     let s = wrap_coord(u, wu) * t.width as f32 - 0.5;
@@ -189,7 +189,7 @@ pub fn sample_rgba(texels: &[u32], t: &GpuTexture, u: f32, v: f32) -> [f32; 4] {
 }
 
 /// [`sample_rgba`] without alpha.
-pub fn sample(texels: &[u32], t: &GpuTexture, u: f32, v: f32) -> V3<f32> {
+pub fn sample(texels: &[u32], t: &FlatTexture, u: f32, v: f32) -> V3<f32> {
     let [r, g, b, _] = sample_rgba(texels, t, u, v);
     V3::new(r, g, b)
 }
@@ -214,7 +214,7 @@ pub fn barycentrics(a: V3<f32>, b: V3<f32>, c: V3<f32>, p: V3<f32>) -> (f32, f32
 mod tests {
     use super::*;
 
-    fn tex(w: u32, h: u32, px: Vec<[u8; 3]>, wrap: Wrap, nearest: bool) -> (Vec<GpuTexture>, Vec<u32>) {
+    fn tex(w: u32, h: u32, px: Vec<[u8; 3]>, wrap: Wrap, nearest: bool) -> (Vec<FlatTexture>, Vec<u32>) {
         let px = px.into_iter().map(|[r, g, b]| [r, g, b, 255]).collect();
         let t = Texture { wrap: [wrap; 2], nearest, ..Texture::new("t", w, h, Texels::Rgba8(px)) };
         pack(std::iter::once(&t))

@@ -14,13 +14,13 @@
 use super::guide::Guides;
 use super::surface::{sample_one, sample_rgba};
 use super::texels::Texels;
-use strahl_core::layout::{ENV_MAP, ENV_UNIFORM, FlatScene, GpuEnvironment, TEXTURE_NEAREST};
+use strahl_core::layout::{ENV_MAP, ENV_UNIFORM, FlatEnvironment, FlatScene, TEXTURE_NEAREST};
 use strahl_core::math::lanes::{F, M, V};
 use strahl_core::render::environment::cell_pdf;
 const PI: f32 = std::f32::consts::PI;
 
 /// The scene's environment where the lanes evaluate it: a map sampled by importance.
-pub(super) fn map(g: &FlatScene) -> Option<&GpuEnvironment> {
+pub(super) fn map(g: &FlatScene) -> Option<&FlatEnvironment> {
     g.environment.first().filter(|e| {
         e.flags & ENV_MAP != 0
             && e.flags & ENV_UNIFORM == 0
@@ -30,21 +30,21 @@ pub(super) fn map(g: &FlatScene) -> Option<&GpuEnvironment> {
 
 /// `environment::to_map`.
 #[inline(always)]
-fn to_map<const N: usize>(e: &GpuEnvironment, d: V<N>) -> V<N> {
+fn to_map<const N: usize>(e: &FlatEnvironment, d: V<N>) -> V<N> {
     let (c, s) = (F::splat(e.rot_cos), F::splat(e.rot_sin));
     V::new(c * d.x - s * d.z, d.y, s * d.x + c * d.z)
 }
 
 /// `environment::from_map`.
 #[inline(always)]
-fn from_map<const N: usize>(e: &GpuEnvironment, d: V<N>) -> V<N> {
+fn from_map<const N: usize>(e: &FlatEnvironment, d: V<N>) -> V<N> {
     let (c, s) = (F::splat(e.rot_cos), F::splat(e.rot_sin));
     V::new(c * d.x + s * d.z, d.y, -s * d.x + c * d.z)
 }
 
 /// `environment::map_uv`.
 #[inline(always)]
-fn map_uv<const N: usize>(e: &GpuEnvironment, d: V<N>) -> (F<N>, F<N>) {
+fn map_uv<const N: usize>(e: &FlatEnvironment, d: V<N>) -> (F<N>, F<N>) {
     let m = to_map(e, d);
     (F::splat(0.5) + m.x.atan2(m.z) * F::splat(0.5 / PI), m.y.acos() * F::splat(1.0 / PI))
 }
@@ -54,7 +54,7 @@ fn map_uv<const N: usize>(e: &GpuEnvironment, d: V<N>) -> (F<N>, F<N>) {
 pub(super) fn radiance<const N: usize>(
     g: &FlatScene,
     texels: &Texels,
-    e: &GpuEnvironment,
+    e: &FlatEnvironment,
     d: V<N>,
     on: [bool; N],
 ) -> V<N> {
@@ -64,7 +64,7 @@ pub(super) fn radiance<const N: usize>(
 
 /// The map's radiance at (u, v), in the lanes `on`.
 #[inline(always)]
-fn at_uv<const N: usize>(g: &FlatScene, texels: &Texels, e: &GpuEnvironment, u: F<N>, v: F<N>, on: [bool; N]) -> V<N> {
+fn at_uv<const N: usize>(g: &FlatScene, texels: &Texels, e: &FlatEnvironment, u: F<N>, v: F<N>, on: [bool; N]) -> V<N> {
     let c = match texels.get(e.texture as usize) {
         Some(rgba) => sample_one(&g.textures[e.texture as usize], rgba, M::from_bools(&on), u, v),
         None => sample_rgba(g, texels, on.map(|o| o.then_some(e.texture)), u, v),
@@ -75,7 +75,7 @@ fn at_uv<const N: usize>(g: &FlatScene, texels: &Texels, e: &GpuEnvironment, u: 
 /// The density over the sphere of cells of density `p` over (u, v) (`environment::cell_pdf`)
 /// at sin θ = `sin_theta` (0 where that is not positive).
 #[inline(always)]
-fn density<const N: usize>(e: &GpuEnvironment, p: F<N>, sin_theta: F<N>) -> F<N> {
+fn density<const N: usize>(e: &FlatEnvironment, p: F<N>, sin_theta: F<N>) -> F<N> {
     let pdf = F::splat(e.select_prob) * p / (F::splat(2.0 * PI * PI) * sin_theta);
     sin_theta.le(F::splat(0.0)).select(F::splat(0.0), pdf)
 }
@@ -87,7 +87,7 @@ pub(super) fn radiance_and_pdf<const N: usize>(
     g: &FlatScene,
     texels: &Texels,
     guides: &Guides,
-    e: &GpuEnvironment,
+    e: &FlatEnvironment,
     d: V<N>,
     on: [bool; N],
 ) -> (V<N>, F<N>) {
@@ -99,7 +99,7 @@ pub(super) fn radiance_and_pdf<const N: usize>(
 #[inline(always)]
 fn pdf_at<const N: usize>(
     g: &FlatScene,
-    e: &GpuEnvironment,
+    e: &FlatEnvironment,
     guides: &Guides,
     d: V<N>,
     u: F<N>,
@@ -143,7 +143,7 @@ fn find_cells<const N: usize>(table: &[f32], base: [usize; N], len: usize, u: F<
 pub(super) fn sample<const N: usize>(
     g: &FlatScene,
     texels: &Texels,
-    e: &GpuEnvironment,
+    e: &FlatEnvironment,
     guides: &Guides,
     u1: F<N>,
     u2: F<N>,

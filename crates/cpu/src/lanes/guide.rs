@@ -28,7 +28,7 @@
 // instructions.
 #![allow(clippy::needless_range_loop)]
 
-use strahl_core::layout::{FlatScene, GpuEnvironment};
+use strahl_core::layout::{FlatEnvironment, FlatScene};
 use strahl_core::math::lanes::F;
 use strahl_core::render::environment::cell_pdf;
 
@@ -48,7 +48,7 @@ pub(super) struct Guides {
 impl Guides {
     /// The guides of `g`'s emitters and of `env`, its environment map where the lanes sample
     /// it ([`super::environment::map`]).
-    pub fn new(g: &FlatScene, env: Option<&GpuEnvironment>) -> Self {
+    pub fn new(g: &FlatScene, env: Option<&FlatEnvironment>) -> Self {
         let emitters =
             (!g.emitters.is_empty()).then(|| Guide::new(1, g.emitters.len() - 1, |_, i| g.emitters[i].cdf)).flatten();
         let env_pdf = match env {

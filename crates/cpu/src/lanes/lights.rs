@@ -13,7 +13,7 @@
 use super::environment;
 use super::guide::Guides;
 use super::texels::Texels;
-use strahl_core::layout::{FlatScene, FrameParams, GpuEmitter, MATERIAL_TWO_SIDED};
+use strahl_core::layout::{FlatEmitter, FlatScene, FrameParams, MATERIAL_TWO_SIDED};
 use strahl_core::math::V3;
 use strahl_core::math::lanes::{F, M, U, V};
 use strahl_core::primitives::{PrimKind, PrimRef};
@@ -215,7 +215,7 @@ fn area<const N: usize>(
 /// the table's length only, so all lanes take each together and their loads overlap, where one
 /// search's would wait on each other. (The choice where the table has no guide.)
 #[inline(always)]
-fn select<const N: usize>(table: &[GpuEmitter], u: F<N>) -> [usize; N] {
+fn select<const N: usize>(table: &[FlatEmitter], u: F<N>) -> [usize; N] {
     let mut base = [0usize; N];
     let mut n = table.len() - 1;
     if n == 0 {
@@ -248,13 +248,13 @@ mod tests {
         let mut rng = Sampler::new(7, 8, 9);
         for len in 1..=40usize {
             let mut cdf = 0.0f32;
-            let table: Vec<GpuEmitter> = (0..len)
+            let table: Vec<FlatEmitter> = (0..len)
                 .map(|k| {
                     // Every fourth emitter has no power: its cdf repeats the one before.
                     if k % 4 != 3 {
                         cdf += 0.1 + rng.next_f32();
                     }
-                    GpuEmitter { cdf, ..Default::default() }
+                    FlatEmitter { cdf, ..Default::default() }
                 })
                 .collect();
             let total = table[len - 1].cdf;

@@ -252,7 +252,7 @@ pub(super) fn samples<const N: usize>(l: &Lobes<N>, cos_o: F<N>) -> M<N> {
 mod tests {
     use super::super::unit_direction;
     use super::*;
-    use strahl_core::layout::GpuMaterial;
+    use strahl_core::layout::FlatMaterial;
     use strahl_core::math::V3;
     use strahl_core::render::bsdf;
     use strahl_core::render::pbr::pbr_lobes;
@@ -277,7 +277,7 @@ mod tests {
         let mut rng = Sampler::new(11, 12, 13);
         let mut compared = 0;
         for _ in 0..2000 {
-            let m: [GpuMaterial; N] = std::array::from_fn(|_| GpuMaterial {
+            let m: [FlatMaterial; N] = std::array::from_fn(|_| FlatMaterial {
                 kind: MaterialKind::Pbr as u32,
                 color: [rng.next_f32(), rng.next_f32(), rng.next_f32() * 1.2],
                 metallic: rng.next_f32() * 1.1 - 0.05,
@@ -331,7 +331,7 @@ mod tests {
         let mut rng = Sampler::new(21, 22, 23);
         let mut compared = 0;
         for _ in 0..2000 {
-            let m: [GpuMaterial; N] = std::array::from_fn(|_| GpuMaterial {
+            let m: [FlatMaterial; N] = std::array::from_fn(|_| FlatMaterial {
                 kind: MaterialKind::Mirror as u32,
                 color: [rng.next_f32(), rng.next_f32(), rng.next_f32()],
                 roughness: bsdf::MIN_ROUGHNESS + rng.next_f32().powi(2),

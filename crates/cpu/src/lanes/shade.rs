@@ -66,7 +66,7 @@ pub struct Material {
     pub flags: u32,
     /// Emissive (its emission is added where a path meets it).
     pub emits: bool,
-    /// [`strahl_core::layout::GpuMaterial::is_light`].
+    /// [`strahl_core::layout::FlatMaterial::is_light`].
     pub light: bool,
     pub color: [f32; 3],
     pub radiance: [f32; 3],
@@ -168,7 +168,7 @@ impl Facts {
 /// and the shading's loop over the lanes would wait for them one after the other.
 #[inline(always)]
 pub(super) fn prefetch(inp: &ShadeInputs, hits: &[Nearest<f32>]) {
-    let (g, prims) = (inp.gpu, inp.prims);
+    let (g, prims) = (inp.flat, inp.prims);
     for h in hits.iter().filter(|h| h.found) {
         let i = h.prim_ref.index();
         match h.prim_ref.kind() {
@@ -202,7 +202,7 @@ pub(super) fn shade<const N: usize, const RICH: bool>(
     more: &mut [bool],
     nee: &mut Vec<(u32, NeeRay)>,
 ) {
-    let (f, g, prims) = (inp.frame, inp.gpu, inp.prims);
+    let (f, g, prims) = (inp.frame, inp.flat, inp.prims);
     debug_assert!(n_lanes <= N && k + N <= p.capacity());
 
     // Lane after lane: which lanes the loops shade, and what they read of the hit and its
@@ -675,7 +675,7 @@ fn fresnel_dielectric<const N: usize>(cos_i: F<N>, eta: F<N>) -> F<N> {
 mod tests {
     use super::super::unit_direction;
     use super::*;
-    use strahl_core::layout::GpuMaterial;
+    use strahl_core::layout::FlatMaterial;
     use strahl_core::render::sampler::Sampler;
 
     const N: usize = 16;
@@ -694,7 +694,7 @@ mod tests {
                 Kind::Glass => MaterialKind::Dielectric,
                 Kind::Pbr => MaterialKind::Pbr,
             };
-            GpuMaterial { kind: kind as u32, ..Default::default() }
+            FlatMaterial { kind: kind as u32, ..Default::default() }
         };
         let (mut bent, mut checked) = (0, 0);
         for _ in 0..2000 {

@@ -12,7 +12,7 @@
 use super::pbr::clamp01;
 use super::texels::Texels;
 use strahl_core::layout::{
-    ATTR_NORMALS, FlatScene, GpuTexture, TEXTURE_UV1, TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT,
+    ATTR_NORMALS, FlatScene, FlatTexture, TEXTURE_UV1, TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT,
 };
 use strahl_core::math::lanes::{F, M, U, V};
 use strahl_core::render::texture::{lerp4, texel, wrap_index};
@@ -154,7 +154,7 @@ pub(super) fn sample_rgba<const N: usize>(
 /// [`sample_rgba`] in the lanes `on`, which all read texture `t`, whose decoded copy is
 /// `rgba`, by the same operations; 1 in the others.
 #[inline(always)]
-pub(super) fn sample_one<const N: usize>(t: &GpuTexture, rgba: &[[f32; 4]], on: M<N>, u: F<N>, v: F<N>) -> [F<N>; 4] {
+pub(super) fn sample_one<const N: usize>(t: &FlatTexture, rgba: &[[f32; 4]], on: M<N>, u: F<N>, v: F<N>) -> [F<N>; 4] {
     let (wu, wv) = ((t.flags >> TEXTURE_WRAP_U_SHIFT) & 3, (t.flags >> TEXTURE_WRAP_V_SHIFT) & 3);
     let s = wrap_coord(u, U::splat(wu)) * F::splat(t.width as f32) - F::splat(0.5);
     let r = wrap_coord(v, U::splat(wv)) * F::splat(t.height as f32) - F::splat(0.5);

@@ -109,7 +109,7 @@ struct Material {
     pad: vec2<u32>,
 }
 
-// A use of an image in `texels` (gpu_types::GpuTexture): the texture-coordinate transform
+// A use of an image in `texels` (gpu_types::FlatTexture): the texture-coordinate transform
 // (a, b, d, e) and offset (c, f) of (a u + b v + c, d u + e v + f).
 struct TextureInfo {
     width: u32,
@@ -121,7 +121,7 @@ struct TextureInfo {
     pad: vec2<u32>,
 }
 
-// What a triangle's vertices carry besides positions (gpu_types::GpuTriangleAttrs): two sets
+// What a triangle's vertices carry besides positions (gpu_types::FlatTriangleAttrs): two sets
 // of texture coordinates, octahedral normals (two snorm16), RGBA8 colours, ATTR_* flags.
 struct TriangleAttrs {
     uv: array<vec2<f32>, 3>,
@@ -132,7 +132,7 @@ struct TriangleAttrs {
     pad: u32,
 }
 
-// The environment (gpu_types::GpuEnvironment).
+// The environment (gpu_types::FlatEnvironment).
 struct Environment {
     radiance: vec3<f32>,
     flags: u32,

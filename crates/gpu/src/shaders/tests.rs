@@ -219,8 +219,8 @@ fn the_key_of_a_scene_is_the_key_of_its_buffers() {
         }
         let scene = strahl_core::scene::Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
         let prep = strahl_core::render::Prepared::new(scene.clone());
-        assert_eq!(FeatureKey::of_scene(&scene, &prep.prims), FeatureKey::for_scene(&prep.gpu), "{}", path.display());
-        flags |= FeatureKey::for_scene(&prep.gpu);
+        assert_eq!(FeatureKey::of_scene(&scene, &prep.prims), FeatureKey::for_scene(&prep.flat), "{}", path.display());
+        flags |= FeatureKey::for_scene(&prep.flat);
         seen += 1;
     }
     assert!(seen >= 11, "only {seen} scenes");
@@ -390,15 +390,15 @@ fn wgsl_struct_layouts_equal_the_rust_structs() {
                 seed
             ]
         ),
-        layout!("Sphere", GpuSphere, [center, radius, object, face, material, _pad]),
-        layout!("Cylinder", GpuCylinder, [pa, radius, pb, caps, object, face, material, _pad]),
-        layout!("Plane", GpuPlane, [point, object, normal, material]),
-        layout!("Triangle", GpuTriangle, [va, object, vb, face, vc, material]),
+        layout!("Sphere", FlatSphere, [center, radius, object, face, material, _pad]),
+        layout!("Cylinder", FlatCylinder, [pa, radius, pb, caps, object, face, material, _pad]),
+        layout!("Plane", FlatPlane, [point, object, normal, material]),
+        layout!("Triangle", FlatTriangle, [va, object, vb, face, vc, material]),
         layout!("Node", GpuNode, [lo_a, link_a, hi_a, link_b, lo_b, _pad_a, hi_b, _pad_b]),
         layout!("LeafTriangle", GpuLeafTriangle, [va, index, vb, material, vc, _pad]),
         layout!(
             "Material",
-            GpuMaterial,
+            FlatMaterial,
             [
                 color,
                 kind,
@@ -417,15 +417,15 @@ fn wgsl_struct_layouts_equal_the_rust_structs() {
                 _pad
             ]
         ),
-        layout!("TextureInfo", GpuTexture, [width, height, offset, flags, linear, offset_uv, _pad]),
-        layout!("TriangleAttrs", GpuTriangleAttrs, [uv, second_uv, normal, color, flags, _pad]),
+        layout!("TextureInfo", FlatTexture, [width, height, offset, flags, linear, offset_uv, _pad]),
+        layout!("TriangleAttrs", FlatTriangleAttrs, [uv, second_uv, normal, color, flags, _pad]),
         layout!(
             "Environment",
-            GpuEnvironment,
+            FlatEnvironment,
             [radiance, flags, rot_cos, rot_sin, texture, select_prob, width, height, _pad, sh]
         ),
-        layout!("Light", GpuLight, [vector, kind, intensity, flags]),
-        layout!("Emitter", GpuEmitter, [source, kind, cdf, pdf]),
+        layout!("Light", FlatLight, [vector, kind, intensity, flags]),
+        layout!("Emitter", FlatEmitter, [source, kind, cdf, pdf]),
         layout!("QueryRay", GpuQueryRay, [origin, tmin, dir, tmax]),
         layout!("QueryHit", GpuQueryHit, [normal, t, object, face, prim_ref, flags]),
     ];
@@ -470,20 +470,20 @@ fn wgsl_struct_layouts_equal_the_rust_structs() {
 fn rust_struct_of(name: &str) -> &'static str {
     match name {
         "Frame" => "FrameParams",
-        "Sphere" => "GpuSphere",
-        "Cylinder" => "GpuCylinder",
-        "Plane" => "GpuPlane",
-        "Triangle" => "GpuTriangle",
+        "Sphere" => "FlatSphere",
+        "Cylinder" => "FlatCylinder",
+        "Plane" => "FlatPlane",
+        "Triangle" => "FlatTriangle",
         "Node" => "GpuNode",
         "LeafTriangle" => "GpuLeafTriangle",
-        "Material" => "GpuMaterial",
-        "Light" => "GpuLight",
-        "Emitter" => "GpuEmitter",
+        "Material" => "FlatMaterial",
+        "Light" => "FlatLight",
+        "Emitter" => "FlatEmitter",
         "QueryRay" => "GpuQueryRay",
         "QueryHit" => "GpuQueryHit",
-        "TextureInfo" => "GpuTexture",
-        "TriangleAttrs" => "GpuTriangleAttrs",
-        "Environment" => "GpuEnvironment",
+        "TextureInfo" => "FlatTexture",
+        "TriangleAttrs" => "FlatTriangleAttrs",
+        "Environment" => "FlatEnvironment",
         _ => panic!("no Rust twin named for WGSL struct {name}"),
     }
 }
