@@ -317,3 +317,115 @@ fn no_source_file_outside_tests_is_over_800_lines() {
     assert!(checked >= 100, "checked only {checked} files");
     assert!(long.is_empty(), "over {MAX_LINES} lines:\n{}", long.join("\n"));
 }
+
+/// No function outside tests is longer than this: a longer one is several steps that want
+/// names of their own.
+const MAX_FN_LINES: usize = 150;
+
+/// The functions of Rust source `code` with their lengths in lines (from the line of `fn` to
+/// the closing brace), up to the file's first `#[cfg(test)]`. Braces in strings, character
+/// literals and comments are skipped.
+fn function_lengths(code: &str) -> Vec<(String, usize)> {
+    let code = code.split("#[cfg(test)]").next().unwrap_or("");
+    // The code with strings, characters and comments blanked (newlines kept).
+    let mut plain = String::with_capacity(code.len());
+    let mut chars = code.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '/' if chars.peek() == Some(&'/') => {
+                for d in chars.by_ref() {
+                    if d == '\n' {
+                        plain.push('\n');
+                        break;
+                    }
+                }
+            }
+            '"' => {
+                let mut escaped = false;
+                for d in chars.by_ref() {
+                    if d == '\n' {
+                        plain.push('\n');
+                    }
+                    if !escaped && d == '"' {
+                        break;
+                    }
+                    escaped = !escaped && d == '\\';
+                }
+                plain.push(' ');
+            }
+            // A character literal ('{', '\''), not a lifetime ('a).
+            '\'' if chars.clone().take(2).collect::<String>().ends_with('\'') || chars.peek() == Some(&'\\') => {
+                let mut escaped = false;
+                for d in chars.by_ref() {
+                    if !escaped && d == '\'' {
+                        break;
+                    }
+                    escaped = !escaped && d == '\\';
+                }
+                plain.push(' ');
+            }
+            c => plain.push(c),
+        }
+    }
+    let mut out = Vec::new();
+    let bytes = plain.as_bytes();
+    let mut from = 0;
+    while let Some(i) = plain[from..].find("fn ").map(|i| i + from) {
+        from = i + 3;
+        if i > 0 && (bytes[i - 1].is_ascii_alphanumeric() || bytes[i - 1] == b'_') {
+            continue;
+        }
+        let name: String = plain[from..].chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
+        // The body: the first brace before any semicolon (none for a declaration).
+        let (Some(open), semi) = (plain[from..].find('{'), plain[from..].find(';')) else { continue };
+        if semi.is_some_and(|s| s < open) {
+            continue;
+        }
+        let mut depth = 0;
+        let mut end = from + open;
+        for (j, b) in bytes[from + open..].iter().enumerate() {
+            match b {
+                b'{' => depth += 1,
+                b'}' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        end = from + open + j;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        out.push((name, plain[i..=end].lines().count()));
+    }
+    out
+}
+
+#[test]
+fn no_function_outside_tests_is_over_150_lines() {
+    let out = std::process::Command::new("git").args(["ls-files", "-z"]).current_dir(root()).output().unwrap();
+    let mut long = Vec::new();
+    let mut checked = 0;
+    for name in out.stdout.split(|&b| b == 0).filter(|n| !n.is_empty()) {
+        let name = String::from_utf8_lossy(name).into_owned();
+        let in_tests = name.starts_with("tests/") || name.contains("/tests/") || name.ends_with("/tests.rs");
+        if !name.ends_with(".rs") || in_tests || name.starts_with("benches/") || !root().join(&name).is_file() {
+            continue;
+        }
+        let code = std::fs::read_to_string(root().join(&name)).unwrap();
+        for (f, lines) in function_lengths(&code) {
+            checked += 1;
+            if lines > MAX_FN_LINES {
+                long.push(format!("{name}: fn {f}: {lines} lines"));
+            }
+        }
+    }
+    assert!(checked >= 1000, "checked only {checked} functions");
+    assert!(long.is_empty(), "over {MAX_FN_LINES} lines:\n{}", long.join("\n"));
+}
+
+#[test]
+fn function_lengths_count_from_fn_to_its_brace_past_braces_in_strings() {
+    let code = "fn a() {\n    let s = \"}\";\n    let c = '{';\n    // }\n}\nfn b<'x>(v: &'x u8);\nimpl T { fn c(&self) {\n} }\n#[cfg(test)]\nfn d() {}";
+    assert_eq!(function_lengths(code), vec![("a".to_string(), 5), ("c".to_string(), 2)]);
+}

@@ -299,18 +299,6 @@ fn bad_arguments_exit_with_status_2() {
     assert!(!x.exists());
 }
 
-/// A build without the `viewer` feature has `strahl view`, which says how to get the viewer
-/// and fails (status 1) whatever its arguments, opening nothing.
-#[cfg(not(feature = "viewer"))]
-#[test]
-fn view_in_a_build_without_the_viewer_says_how_to_get_it() {
-    let s = scene("sphere.toml");
-    for args in [vec!["view", s.to_str().unwrap()], vec!["view", s.to_str().unwrap(), "--scale", "2"]] {
-        let err = fails(&strahl(&args), 1);
-        assert!(err.contains("without the viewer") && err.contains("cargo build --release"), "{args:?}: {err}");
-    }
-}
-
 /// A BOM-prefixed rays CSV (as spreadsheets write) reads as without one.
 #[test]
 fn a_byte_order_mark_in_a_rays_file_is_accepted() {

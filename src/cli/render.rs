@@ -151,9 +151,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
     };
     let progress = Progress::new(samples as u64, "render");
     let render_on_cpu = || {
+        // The CPU's own tree first: the time below is the render's.
+        let on_cpu = strahl_cpu::CpuScene::new(&prep);
         let start = Instant::now();
         let per_row = region.width() as u64 * frame.spp as u64;
-        let img = strahl_cpu::render_region(&strahl_cpu::CpuScene::new(&prep), &frame, mode, region, &|rows| {
+        let tracer = strahl_cpu::PathTracer::default();
+        let (img, report) = strahl_cpu::render_region_reported(&on_cpu, &frame, mode, region, tracer, false, &|rows| {
             progress.set(rows * per_row)
         });
         progress.finish();
@@ -165,6 +168,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
             mode.name(),
             samples / secs / 1e6
         );
+        if let Some(line) = report.fallbacks.summary(&prep.scene.materials) {
+            println!("{line}");
+        }
         (img, "cpu", format!("cpu ({threads} threads)"))
     };
     let (selected, auto) = super::open_backend(a.backend, workload)?;

@@ -1,7 +1,6 @@
 //! Shared helpers of the integration tests.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
 use strahl_gpu::GpuContext;
 
 /// Records that the running test skipped (all or part of) its checks, and why: a line
@@ -59,18 +58,8 @@ pub fn gpu() -> Option<GpuContext> {
     }
 }
 
-/// Every scene shipped in assets/scenes, sorted.
-pub fn shipped_scenes() -> Vec<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .expect("assets/scenes")
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    v.sort();
-    assert!(v.len() >= 8, "expected the shipped scenes in {}", dir.display());
-    v
-}
+#[allow(unused_imports)] // not every test binary reads the shipped scenes or makes images
+pub use strahl_core::testutil::{png, shipped_scenes};
 
 /// Deterministic test randomness: the crate's SplitMix64.
 #[allow(unused_imports)] // not every test binary draws random rays
@@ -175,14 +164,6 @@ pub fn mean_and_error(values: &[f64]) -> (f64, f64) {
     let mean = values.iter().sum::<f64>() / n;
     let var = values.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
     (mean, (var / n).sqrt())
-}
-
-/// A PNG of `w` × `h` RGB codes given per texel (row 0 at the top).
-pub fn png(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
-    let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb(f(x, y)));
-    let mut out = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut out, image::ImageFormat::Png).unwrap();
-    out.into_inner()
 }
 
 /// An EXR file's pixels, each channel as its bits, so that -0.0 and 0.0 are told apart.

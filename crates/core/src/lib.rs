@@ -25,6 +25,8 @@ pub mod raysets;
 pub mod render;
 pub mod rng;
 pub mod scene;
+#[doc(hidden)]
+pub mod testutil;
 
 /// A spawned-ray query's answer: the first hit, and the nearest hit of the ray spawned from it.
 pub type SpawnHits = (Option<crate::primitives::Hit<f32>>, Option<crate::primitives::Hit<f32>>);

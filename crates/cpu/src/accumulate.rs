@@ -51,7 +51,8 @@ impl PathAccumulator {
                     || lanes::Tracer::new(isa, &facts, false),
                     |tracer, (y, row)| {
                         let width = row.len() as u32;
-                        tracer.row(&inputs, y as u32, 0, width, first..first + n, &mut |x, c| {
+                        let span = lanes::Span { y: y as u32, x0: 0, width, samples: first..first + n };
+                        tracer.row(&inputs, span, &mut |x, c| {
                             let px = &mut row[x];
                             *px = [px[0] + c.x, px[1] + c.y, px[2] + c.z];
                         });

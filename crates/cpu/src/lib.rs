@@ -22,7 +22,9 @@ pub mod shade;
 pub mod trace;
 
 pub use accumulate::PathAccumulator;
-pub use render::{PathTracer, render, render_path_timed, render_region, render_region_with};
+pub use render::{
+    PathTracer, Report, render, render_path_timed, render_region, render_region_reported, render_region_with,
+};
 pub use trace::{trace, trace_spawn};
 
 use accel::WideBvh;

@@ -90,32 +90,43 @@ pub fn render_region_with(
     tracer: PathTracer,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Image {
-    render_region_timed(scene, frame, mode, region, tracer, None, progress)
+    render_region_reported(scene, frame, mode, region, tracer, false, progress).0
 }
 
 /// The whole image in path mode by the lane tracer with `isa`'s lanes, and where its time
 /// went (summed over the threads).
 pub fn render_path_timed(scene: &CpuScene, frame: &FrameParams, isa: Isa) -> (Image, lanes::StageTimes) {
-    let times = std::sync::Mutex::new(lanes::StageTimes::default());
     let whole = Region::whole(frame.width, frame.height);
-    let img = render_region_timed(scene, frame, RenderMode::Path, whole, PathTracer::Lanes(isa), Some(&times), &|_| {});
-    (img, times.into_inner().unwrap_or_else(|e| e.into_inner()))
+    let (img, report) =
+        render_region_reported(scene, frame, RenderMode::Path, whole, PathTracer::Lanes(isa), true, &|_| {});
+    (img, report.times)
 }
 
-fn render_region_timed(
+/// What a render did besides its image, summed over the threads: where the lane tracer's
+/// time went (when timed), and the path vertices it shaded in lanes and those it left to the
+/// one-path code.
+#[derive(Clone, Debug, Default)]
+pub struct Report {
+    pub times: lanes::StageTimes,
+    pub fallbacks: lanes::Fallbacks,
+}
+
+/// [`render_region_with`], and its [`Report`] (`timed`: with the lane tracer's stage times).
+pub fn render_region_reported(
     scene: &CpuScene,
     frame: &FrameParams,
     mode: RenderMode,
     region: Region,
     tracer: PathTracer,
-    times: Option<&std::sync::Mutex<lanes::StageTimes>>,
+    timed: bool,
     progress: &(dyn Fn(u64) + Sync),
-) -> Image {
+) -> (Image, Report) {
     assert!(region.fits(frame.width, frame.height), "region {region} of a {}x{} image", frame.width, frame.height);
     let inputs = scene.inputs(frame);
     let mut img = Image::new(region.width(), region.height());
+    let report = std::sync::Mutex::new(Report::default());
     if img.pixels.is_empty() {
-        return img;
+        return (img, Report::default());
     }
     let done = AtomicU64::new(0);
     let rows = img.pixels.par_chunks_mut(region.width() as usize).enumerate();
@@ -123,27 +134,28 @@ fn render_region_timed(
         (RenderMode::Path, Some((isa, walk))) => {
             let samples = frame.sample_base..frame.sample_base + frame.spp;
             let facts = lanes::Facts::new(&scene.prep.flat, frame.num_lights, walk);
-            // Each worker's tracer, its time added to `times` when the worker is done.
+            // Each worker's tracer, its report added to the render's when the worker is done.
             struct Worker<'f, 't> {
                 tracer: lanes::Tracer<'f>,
                 sums: Vec<V3<f32>>,
-                times: Option<&'t std::sync::Mutex<lanes::StageTimes>>,
+                report: &'t std::sync::Mutex<Report>,
             }
             impl Drop for Worker<'_, '_> {
                 fn drop(&mut self) {
-                    if let Some(t) = self.times {
-                        t.lock().unwrap_or_else(|e| e.into_inner()).add(&self.tracer.times);
-                    }
+                    let mut r = self.report.lock().unwrap_or_else(|e| e.into_inner());
+                    r.times.add(&self.tracer.times);
+                    r.fallbacks.add(&self.tracer.fallbacks);
                 }
             }
             rows.for_each_init(
-                || Worker { tracer: lanes::Tracer::new(isa, &facts, times.is_some()), sums: Vec::new(), times },
+                || Worker { tracer: lanes::Tracer::new(isa, &facts, timed), sums: Vec::new(), report: &report },
                 |w, (dy, row)| {
                     w.sums.clear();
                     w.sums.resize(row.len(), V3::zero());
                     let y = region.y0 + dy as u32;
                     let sums = &mut w.sums;
-                    w.tracer.row(&inputs, y, region.x0, row.len() as u32, samples.clone(), &mut |x, c| sums[x] += c);
+                    let span = lanes::Span { y, x0: region.x0, width: row.len() as u32, samples: samples.clone() };
+                    w.tracer.row(&inputs, span, &mut |x, c| sums[x] += c);
                     for (px, sum) in row.iter_mut().zip(sums.iter()) {
                         *px = (*sum / frame.spp as f32).to_array();
                     }
@@ -171,5 +183,5 @@ fn render_region_timed(
             });
         }
     }
-    img
+    (img, report.into_inner().unwrap_or_else(|e| e.into_inner()))
 }

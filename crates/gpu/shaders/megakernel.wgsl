@@ -1,5 +1,5 @@
 // Path tracing entry point, one sample per pixel per dispatch (the megakernel): twin of
-// crates/core/src/render/path.rs (radiance). Each vertex is shaded by strahl::path (next-event estimation
+// crates/cpu/src/path.rs (radiance). Each vertex is shaded by strahl::path (next-event estimation
 // with MIS by the power heuristic, Russian roulette from rr_depth segments on; max_depth counts
 // segments as Mitsuba does), and its area-light shadow ray is traced at once.
 #import strahl::types::{FRAME_ACCUMULATE, F32_MAX}

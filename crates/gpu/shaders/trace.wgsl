@@ -1,4 +1,4 @@
-// Ray-query entry points (`strahl trace --backend gpu`): twin of crates/core/src/cpu.rs (trace).
+// Ray-query entry points (`strahl trace --backend gpu`): twin of crates/cpu/src/trace.rs (trace).
 //
 // trace_nearest: one QueryHit per ray. Every-hit mode runs two passes: trace_count writes
 // each ray's hit count to `offsets`; the host turns the counts into exclusive offsets; then

@@ -6,7 +6,7 @@
 // on and its area-light shadow ray if it has one, wf_args sizes the next dispatches (indirect),
 // wf_shadow traces the shadow rays (first hit only); wf_finish adds each path's radiance to its
 // pixel. The host side is crates/gpu/src/wavefront.rs; what a path computes is the twin of
-// crates/core/src/render/path.rs (radiance: the same sums in the same order).
+// crates/cpu/src/path.rs (radiance: the same sums in the same order).
 //
 // A vertex's area-light contribution waits in `pending` until its shadow ray is traced: the next
 // wf_shade of the path (or wf_finish) adds it if the ray was not blocked, before anything else,

@@ -1,5 +1,6 @@
 // Render entry point: one invocation per pixel of the dispatched tile; twin of
-// crates/core/src/cpu.rs (render, one pixel per iteration over rayon's rows).
+// crates/cpu/src/render.rs (render, one pixel per iteration over rayon's rows; its camera rays in lanes:
+// crates/cpu/src/lanes/whitted.rs).
 #import strahl::types::{FRAME_ACCUMULATE}
 #import strahl::bindings::frame
 #import strahl::shade::shade_pixel_sum

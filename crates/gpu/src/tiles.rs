@@ -146,18 +146,8 @@ pub async fn render_tiles_async(
             let pass_frame = FrameParams { sample_base: frame.sample_base + s, ..*frame };
             let accumulate = s > 0;
             let n_tiles = band.tile_count();
-            record_pass(
-                ctx,
-                &mut enc,
-                scene,
-                &pipe,
-                &out_group,
-                &pass_frame,
-                &band,
-                0..n_tiles,
-                accumulate,
-                timer.as_ref().map(|t| (t, 0)),
-            );
+            let pass = Pass { scene, pipeline: &pipe, output: &out_group, frame: &pass_frame, accumulate };
+            record_pass(ctx, &mut enc, &pass, &band, 0..n_tiles, timer.as_ref().map(|t| (t, 0)));
             if let Some(t) = &timer {
                 t.resolve(&mut enc, n_tiles);
             }
@@ -271,18 +261,9 @@ impl PathAccumulator {
                 for k in 0..n {
                     let mut enc = self.ctx.device.create_command_encoder(&Default::default());
                     let frame = FrameParams { sample_base: self.samples + k, ..self.frame };
-                    record_pass(
-                        &self.ctx,
-                        &mut enc,
-                        scene,
-                        pipeline,
-                        out_group,
-                        &frame,
-                        &band,
-                        0..band.tile_count(),
-                        self.samples + k > 0,
-                        None,
-                    );
+                    let accumulate = self.samples + k > 0;
+                    let pass = Pass { scene, pipeline, output: out_group, frame: &frame, accumulate };
+                    record_pass(&self.ctx, &mut enc, &pass, &band, 0..band.tile_count(), None);
                     self.ctx.submit("a sample pass", enc)?;
                 }
             }
@@ -390,26 +371,31 @@ impl Band {
     }
 }
 
-/// Records into `enc` the dispatches of tiles `tiles` of one sample pass (sample
-/// `frame.sample_base`, one sample per pixel) of `pipeline` over `band`, writing into the
-/// output buffer bound by `output` (group 1: `array<vec4<f32>>`, [`GpuContext::output_bind_group`]):
-/// overwriting, or with `accumulate` adding to what it holds. No readback: the caller
-/// submits `enc` and decides what happens to the buffer. With `timer: (t, first)`, dispatch
-/// `k` of this call writes timestamp pair `first + k` of `t`. Returns the number of
+/// What one sample pass (sample `frame.sample_base`, one sample per pixel) dispatches: `pipeline`
+/// over `scene`, writing into the output buffer bound by `output` (group 1:
+/// `array<vec4<f32>>`, [`GpuContext::output_bind_group`]), overwriting, or with `accumulate`
+/// adding to what it holds.
+pub struct Pass<'a> {
+    pub scene: &'a SceneBuffers,
+    pub pipeline: &'a CachedPipeline,
+    pub output: &'a wgpu::BindGroup,
+    pub frame: &'a FrameParams,
+    pub accumulate: bool,
+}
+
+/// Records into `enc` the dispatches of tiles `tiles` of `pass` over `band`. No readback: the
+/// caller submits `enc` and decides what happens to the buffer. With `timer: (t, first)`,
+/// dispatch `k` of this call writes timestamp pair `first + k` of `t`. Returns the number of
 /// dispatches recorded.
-#[allow(clippy::too_many_arguments)]
 pub fn record_pass(
     ctx: &GpuContext,
     enc: &mut wgpu::CommandEncoder,
-    scene: &SceneBuffers,
-    pipeline: &CachedPipeline,
-    output: &wgpu::BindGroup,
-    frame: &FrameParams,
+    pass: &Pass,
     band: &Band,
     tiles: std::ops::Range<u32>,
-    accumulate: bool,
     timer: Option<(&Timer, u32)>,
 ) -> u32 {
+    let Pass { scene, pipeline, output, frame, accumulate } = *pass;
     let scene_group = scene.bind_group(ctx, pipeline);
     let mut n = 0u32;
     for i in tiles.start..tiles.end.min(band.tile_count()) {

@@ -171,21 +171,18 @@ impl Wavefront {
         self.pipelines[GENERATE].key
     }
 
-    /// Records one sample pass (sample `sample`) over rows `first_row .. first_row + rows` of the
-    /// region,
-    /// adding to the output with `accumulate`; with a timer, kernel `k` of the pass writes
-    /// timestamp pair `first + k`. Returns the kernels recorded, in order.
-    #[allow(clippy::too_many_arguments)]
+    /// Records one sample pass (sample `sample`) over the rows `rows` of the region, adding to
+    /// the output with `accumulate`; with a timer, kernel `k` of the pass writes timestamp pair
+    /// `first + k`. Returns the kernels recorded, in order.
     fn record_pass(
         &self,
         ctx: &GpuContext,
         enc: &mut wgpu::CommandEncoder,
-        first_row: u32,
-        rows: u32,
-        sample: u32,
-        accumulate: bool,
+        rows: std::ops::Range<u32>,
+        (sample, accumulate): (u32, bool),
         timer: Option<(&Timer, u32)>,
     ) -> Vec<usize> {
+        let (first_row, rows) = (rows.start, rows.end - rows.start);
         let w = self.region.width();
         let n = w * rows;
         let band = FrameParams {
@@ -273,7 +270,8 @@ impl Wavefront {
             for s in 0..self.frame.spp {
                 let mut enc = ctx.device.create_command_encoder(&Default::default());
                 let timing = timer.as_ref().map(|t| (t, 0));
-                let kernels = self.record_pass(ctx, &mut enc, row0, rows, self.frame.sample_base + s, s > 0, timing);
+                let kernels =
+                    self.record_pass(ctx, &mut enc, row0..row0 + rows, (self.frame.sample_base + s, s > 0), timing);
                 if let Some(t) = &timer {
                     t.resolve(&mut enc, kernels.len() as u32);
                 }
@@ -328,7 +326,7 @@ impl Wavefront {
     pub fn submit_passes(&self, ctx: &GpuContext, first: u32, n: u32) -> Result<(), GpuError> {
         for s in first..first + n {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
-            self.record_pass(ctx, &mut enc, 0, self.frame.height, s, s > 0, None);
+            self.record_pass(ctx, &mut enc, 0..self.frame.height, (s, s > 0), None);
             ctx.submit("a wavefront sample pass", enc)?;
         }
         Ok(())

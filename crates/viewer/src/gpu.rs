@@ -13,7 +13,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 use strahl_core::image::Image;
 use strahl_core::layout::{self as g, FrameParams};
-use strahl_gpu::tiles::{Band, record_pass};
+use strahl_gpu::tiles::{Band, Pass, record_pass};
 use strahl_gpu::{CachedPipeline, GpuContext, GpuError, Program, SceneBuffers};
 
 /// Tile side of the viewer's dispatches, as for `strahl render`. Smaller tiles make the UI
@@ -373,9 +373,10 @@ impl ViewRenderer {
                 let (_, size) = band.tile_rect(i);
                 rays += size[0] as u64 * size[1] as u64;
             }
-            let pass = FrameParams { sample_base: self.acc.samples, ..*frame };
+            let pass_frame = FrameParams { sample_base: self.acc.samples, ..*frame };
             let accumulate = self.acc.samples > 0;
-            record_pass(&self.ctx, &mut enc, scene, pipeline, &target.out_group, &pass, &band, range, accumulate, None);
+            let pass = Pass { scene, pipeline, output: &target.out_group, frame: &pass_frame, accumulate };
+            record_pass(&self.ctx, &mut enc, &pass, &band, range, None);
             self.acc.next_tile += take;
             if self.acc.next_tile == total {
                 self.acc.samples += 1;

@@ -4,11 +4,16 @@
 //! each lane rounds exactly as the scalar operation does, so code written with these types
 //! computes, lane for lane, what the same formula computes on f32 (`V3<f32>`), provided it
 //! performs the same operations in the same order.
+//!
+//! A formula both tracers use is written once, over these types (its `_lanes` form, next to
+//! its one-path form in the stage's file), and the one-path form is its one-lane case: the
+//! `From` conversions below carry an f32 or a `V3<f32>` into one lane and back.
 
 // Lane loops index several arrays with the lane: the form the compiler turns into vector
 // instructions.
 #![allow(clippy::needless_range_loop)]
 
+use super::V3;
 use std::ops::{Add, BitAnd, BitOr, BitXor, Div, Mul, Neg, Not, Shl, Shr, Sub};
 
 #[derive(Clone, Copy, Debug)]
@@ -153,7 +158,7 @@ impl<const N: usize> F<N> {
         }
         F(r)
     }
-    /// [`crate::math::sin_cos_turns`] in every lane, by its operations.
+    /// [`crate::math::sin_cos_turns`] in every lane (its one-lane case is that function).
     #[inline(always)]
     pub fn sin_cos_turns(self) -> (Self, Self) {
         let s = F::splat;
@@ -180,7 +185,8 @@ impl<const N: usize> F<N> {
         (sn, cs)
     }
 
-    /// [`crate::math::atan2`] of (x, y = self) in every lane, by its operations.
+    /// [`crate::math::atan2`] of (x, y = self) in every lane (its one-lane case is that
+    /// function). Comparisons, not min and max, so that a NaN reaches the quotient.
     #[inline(always)]
     pub fn atan2(self, x: Self) -> Self {
         use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
@@ -199,7 +205,7 @@ impl<const N: usize> F<N> {
         let r = x.sign_negative().select(s(PI) - r, r);
         self.sign_negative().select(-r, r)
     }
-    /// [`crate::math::acos`] in every lane, by its operations.
+    /// [`crate::math::acos`] in every lane (its one-lane case is that function).
     #[inline(always)]
     pub fn acos(self) -> Self {
         let s = F::splat;
@@ -424,6 +430,69 @@ impl<const N: usize> Neg for V<N> {
     #[inline(always)]
     fn neg(self) -> Self {
         Self::new(-self.x, -self.y, -self.z)
+    }
+}
+
+/// `f32::clamp(0, 1)` lane by lane (NaN stays NaN).
+#[inline(always)]
+pub fn clamp01<const N: usize>(x: F<N>) -> F<N> {
+    let (zero, one) = (F::splat(0.0), F::splat(1.0));
+    let x = x.lt(zero).select(zero, x);
+    x.gt(one).select(one, x)
+}
+
+/// `v − ⌊v⌋` lane by lane.
+#[inline(always)]
+pub fn fract<const N: usize>(v: F<N>) -> F<N> {
+    v - v.map(f32::floor)
+}
+
+impl From<f32> for F<1> {
+    #[inline(always)]
+    fn from(x: f32) -> Self {
+        F([x])
+    }
+}
+
+impl From<F<1>> for f32 {
+    #[inline(always)]
+    fn from(x: F<1>) -> f32 {
+        x.0[0]
+    }
+}
+
+impl From<u32> for U<1> {
+    #[inline(always)]
+    fn from(x: u32) -> Self {
+        U([x])
+    }
+}
+
+impl From<U<1>> for u32 {
+    #[inline(always)]
+    fn from(x: U<1>) -> u32 {
+        x.0[0]
+    }
+}
+
+impl From<bool> for M<1> {
+    #[inline(always)]
+    fn from(b: bool) -> Self {
+        M([(b as u32).wrapping_neg()])
+    }
+}
+
+impl From<V3<f32>> for V<1> {
+    #[inline(always)]
+    fn from(v: V3<f32>) -> Self {
+        V::new(F([v.x]), F([v.y]), F([v.z]))
+    }
+}
+
+impl From<V<1>> for V3<f32> {
+    #[inline(always)]
+    fn from(v: V<1>) -> V3<f32> {
+        V3::new(v.x.0[0], v.y.0[0], v.z.0[0])
     }
 }
 

@@ -116,36 +116,13 @@ impl_real!(f64, |a: f64, b: f64, c: f64, d: f64| {
 /// f32, and so is 1 − remainder on odd octants), so the polynomials only see θ ∈ [0, π/4]:
 /// Taylor series to θ⁹ and θ¹⁰ (truncation below 2·10⁻⁹; Muller, "Elementary Functions",
 /// ch. 11, for the octant reduction), in multiplies and adds only, so that the lane path
-/// tracer (`render/lanes/lane.rs`, `F::sin_cos_turns`) computes the same bits in every lane.
+/// tracer (`math/lanes.rs`, `F::sin_cos_turns`) computes the same bits in every lane.
 /// Absolute error at most 3·2⁻²⁴ (tested against f64 in `sin_cos_turns_is_accurate`); the
 /// GPU computes `sin(2πu)` and `cos(2πu)` with its own functions.
 #[inline]
 pub fn sin_cos_turns(u: f32) -> (f32, f32) {
-    let x = 8.0 * u;
-    let octant = x.floor();
-    let f = x - octant;
-    let half = (octant * 0.5).floor();
-    let odd = octant - 2.0 * half;
-    // Even octant 2q: θ = f·π/4 past quarter q; odd octant 2q + 1: θ = (1 − f)·π/4 short of
-    // quarter q + 1.
-    let g = if odd == 1.0 { 1.0 - f } else { f };
-    let t = g * std::f32::consts::FRAC_PI_4;
-    let t2 = t * t;
-    let s = t + t * t2 * (-1.0 / 6.0 + t2 * (1.0 / 120.0 + t2 * (-1.0 / 5040.0 + t2 * (1.0 / 362_880.0))));
-    let c =
-        1.0 + t2 * (-0.5 + t2 * (1.0 / 24.0 + t2 * (-1.0 / 720.0 + t2 * (1.0 / 40_320.0 + t2 * (-1.0 / 3_628_800.0)))));
-    let s = if odd == 1.0 { -s } else { s };
-    let quarter = half + odd;
-    let q = quarter - 4.0 * (quarter * 0.25).floor();
-    if q == 0.0 {
-        (s, c)
-    } else if q == 1.0 {
-        (c, -s)
-    } else if q == 2.0 {
-        (-s, -c)
-    } else {
-        (-c, s)
-    }
+    let (s, c) = lanes::F::<1>::from(u).sin_cos_turns();
+    (s.into(), c.into())
 }
 
 /// tan(π/8): arguments above it are turned by π/4 before the polynomial.
@@ -162,19 +139,7 @@ pub(crate) const TAN_PI_8: f32 = 0.414_213_57;
 /// GPU uses its own `atan2`.
 #[inline]
 pub fn atan2(y: f32, x: f32) -> f32 {
-    let (ax, ay) = (x.abs(), y.abs());
-    // (Comparisons, not min and max, so that a NaN reaches the quotient.)
-    let steep = ax < ay;
-    let (lo, hi) = if steep { (ax, ay) } else { (ay, ax) };
-    let a = if hi == 0.0 { 0.0 } else { lo / hi };
-    let turned = a > TAN_PI_8;
-    let t = if turned { (a - 1.0) / (a + 1.0) } else { a };
-    let z = t * t;
-    let p = t + t * z * (ATAN_P[0] + z * (ATAN_P[1] + z * (ATAN_P[2] + z * ATAN_P[3])));
-    let r = if turned { std::f32::consts::FRAC_PI_4 + p } else { p };
-    let r = if steep { std::f32::consts::FRAC_PI_2 - r } else { r };
-    let r = if x.is_sign_negative() { std::f32::consts::PI - r } else { r };
-    if y.is_sign_negative() { -r } else { r }
+    lanes::F::<1>::from(y).atan2(x.into()).into()
 }
 
 /// The coefficients of [`atan2`]'s polynomial P.
@@ -185,8 +150,7 @@ pub(crate) const ATAN_P: [f32; 4] = [-0.333_329_5, 0.199_777_1, -0.138_776_8, 0.
 /// 3·2⁻²³ (`atan2_and_acos_are_accurate`).
 #[inline]
 pub fn acos(x: f32) -> f32 {
-    let x = x.clamp(-1.0, 1.0);
-    atan2(((1.0 - x) * (1.0 + x)).sqrt(), x)
+    lanes::F::<1>::from(x).acos().into()
 }
 
 /// A 3-vector of [`Real`]s.

@@ -10,6 +10,7 @@ use super::microfacet::{ggx_d, ggx_lambda, ggx_sample_visible, schlick};
 use super::pbr::{pbr_fresnel, pbr_lobes};
 use crate::layout::FlatMaterial;
 use crate::math::V3;
+use crate::math::lanes::{F, V};
 use crate::scene::MaterialKind;
 
 const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
@@ -83,11 +84,19 @@ pub fn is_specular(m: &FlatMaterial) -> bool {
 /// Orthonormal Basis, Revisited", JCGT 2017).
 #[inline]
 pub fn basis(n: V3<f32>) -> (V3<f32>, V3<f32>) {
+    let (t, b) = basis_lanes::<1>(n.into());
+    (t.into(), b.into())
+}
+
+/// [`basis`] in every lane.
+#[inline(always)]
+pub fn basis_lanes<const N: usize>(n: V<N>) -> (V<N>, V<N>) {
+    let one = F::splat(1.0);
     // (n.z ≥ 0 rather than copysign: -0 takes the + branch, as in the WGSL twin.)
-    let sign = if n.z >= 0.0 { 1.0f32 } else { -1.0 };
-    let a = -1.0 / (sign + n.z);
+    let sign = n.z.ge(F::splat(0.0)).select(one, -one);
+    let a = -one / (sign + n.z);
     let b = n.x * n.y * a;
-    (V3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), V3::new(b, sign + n.y * n.y * a, -n.y))
+    (V::new(one + sign * n.x * n.x * a, sign * b, -sign * n.x), V::new(b, sign + n.y * n.y * a, -n.y))
 }
 
 #[inline]
@@ -192,29 +201,46 @@ pub fn sample(m: &FlatMaterial, wo: V3<f32>, ns: V3<f32>, front: bool, u: [f32; 
 /// internal reflection.
 #[inline]
 pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    fresnel_dielectric_lanes::<1>(cos_i.into(), eta.into()).into()
+}
+
+/// [`fresnel_dielectric`] in every lane.
+#[inline(always)]
+pub fn fresnel_dielectric_lanes<const N: usize>(cos_i: F<N>, eta: F<N>) -> F<N> {
+    let one = F::splat(1.0);
+    let sin2_t = (one - cos_i * cos_i) / (eta * eta);
+    let cos_t = (one - sin2_t).max(F::splat(0.0)).sqrt();
     let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    0.5 * (r_parl * r_parl + r_perp * r_perp)
+    sin2_t.ge(one).select(one, F::splat(0.5) * (r_parl * r_parl + r_perp * r_perp))
 }
 
 /// Mirror direction of `d` about the unit normal `n`.
 #[inline]
 pub fn reflect(d: V3<f32>, n: V3<f32>) -> V3<f32> {
-    d - n * (2.0 * d.dot(n))
+    reflect_lanes::<1>(d.into(), n.into()).into()
+}
+
+/// [`reflect`] in every lane.
+#[inline(always)]
+pub fn reflect_lanes<const N: usize>(d: V<N>, n: V<N>) -> V<N> {
+    d - n.scale(F::splat(2.0) * d.dot(n))
 }
 
 /// Refracted direction for incident `d`, normal `n` on the incident side, cos θ_i = −d·n and
 /// the ratio `eta_ratio` = n_incident / n_transmitted (no total internal reflection).
 #[inline]
 pub fn refract(d: V3<f32>, n: V3<f32>, cos_i: f32, eta_ratio: f32) -> V3<f32> {
-    let sin2_t = eta_ratio * eta_ratio * (1.0 - cos_i * cos_i);
-    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
-    (d * eta_ratio + n * (eta_ratio * cos_i - cos_t)).normalize()
+    refract_lanes::<1>(d.into(), n.into(), cos_i.into(), eta_ratio.into()).into()
+}
+
+/// [`refract`] in every lane.
+#[inline(always)]
+pub fn refract_lanes<const N: usize>(d: V<N>, n: V<N>, cos_i: F<N>, eta_ratio: F<N>) -> V<N> {
+    let one = F::splat(1.0);
+    let sin2_t = eta_ratio * eta_ratio * (one - cos_i * cos_i);
+    let cos_t = (one - sin2_t).max(F::splat(0.0)).sqrt();
+    (d.scale(eta_ratio) + n.scale(eta_ratio * cos_i - cos_t)).normalize()
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //! [`primary_ray`]).
 
 use crate::layout::FrameParams;
+use crate::math::lanes::{F, U, V, fract};
 use crate::math::{Ray, V3};
 use crate::scene::Camera;
 
@@ -28,9 +29,15 @@ pub fn frame(cam: &Camera, width: u32, height: u32) -> FrameParams {
 /// first point is the pixel centre, so one sample per pixel shoots through the centre.
 #[inline]
 pub fn sample_offset(s: u32) -> (f32, f32) {
-    let fract = |v: f32| v - v.floor();
-    let sf = s as f32;
-    (fract(0.5 + sf * 0.754_877_7), fract(0.5 + sf * 0.569_840_3))
+    let (ox, oy) = sample_offset_lanes::<1>(s.into());
+    (ox.into(), oy.into())
+}
+
+/// [`sample_offset`] in every lane.
+#[inline(always)]
+pub fn sample_offset_lanes<const N: usize>(s: U<N>) -> (F<N>, F<N>) {
+    let sf = s.to_f32();
+    (fract(F::splat(0.5) + sf * F::splat(0.754_877_7)), fract(F::splat(0.5) + sf * F::splat(0.569_840_3)))
 }
 
 /// The primary ray p = p_v + μd through pixel (x, y) (row 0 at the top) for sample `s`.
@@ -43,11 +50,18 @@ pub fn primary_ray(f: &FrameParams, x: u32, y: u32, s: u32) -> Ray<f32> {
 /// The ray through sub-pixel position (ox, oy) ∈ [0, 1)² of pixel (x, y).
 #[inline]
 pub fn ray_through(f: &FrameParams, x: u32, y: u32, ox: f32, oy: f32) -> Ray<f32> {
-    let u = 2.0 * (x as f32 + ox) / f.width as f32 - 1.0;
-    let v = 1.0 - 2.0 * (y as f32 + oy) / f.height as f32;
-    let forward = V3::from_array(f.forward);
-    let dir = forward + V3::from_array(f.right) * u + V3::from_array(f.up) * v;
-    Ray::new(V3::from_array(f.eye), dir.normalize())
+    let dir = ray_through_lanes::<1>(f, x.into(), y, ox.into(), oy.into());
+    Ray::new(V3::from_array(f.eye), dir.into())
+}
+
+/// The direction of [`ray_through`] in every lane (pixels (`x[l]`, `y`) of one row; the ray
+/// leaves the eye).
+#[inline(always)]
+pub fn ray_through_lanes<const N: usize>(f: &FrameParams, x: U<N>, y: u32, ox: F<N>, oy: F<N>) -> V<N> {
+    let (one, two) = (F::splat(1.0), F::splat(2.0));
+    let u = two * (x.to_f32() + ox) / F::splat(f.width as f32) - one;
+    let v = one - two * (F::splat(y as f32) + oy) / F::splat(f.height as f32);
+    (V::splat(f.forward) + V::splat(f.right).scale(u) + V::splat(f.up).scale(v)).normalize()
 }
 
 #[cfg(test)]

@@ -20,6 +20,7 @@
 
 use crate::layout::{FlatEmitter, FlatLight, FlatScene, FrameParams, LIGHT_POINT, LIGHT_STAND_IN, MATERIAL_TWO_SIDED};
 use crate::math::V3;
+use crate::math::lanes::{F, U};
 use crate::primitives::{PrimKind, PrimRef};
 
 /// The mean of a colour's channels: the weight of a radiance in the emitter choice.
@@ -134,7 +135,14 @@ pub fn sample(g: &FlatScene, frame: &FrameParams, p: V3<f32>, u: [f32; 3]) -> Op
 /// |cos| for two-sided ones.
 #[inline]
 pub fn emitted_cos(material_flags: u32, cos: f32) -> f32 {
-    if material_flags & MATERIAL_TWO_SIDED != 0 { cos.abs() } else { cos }
+    emitted_cos_lanes::<1>(material_flags.into(), cos.into()).into()
+}
+
+/// [`emitted_cos`] in every lane.
+#[inline(always)]
+pub fn emitted_cos_lanes<const N: usize>(material_flags: U<N>, cos: F<N>) -> F<N> {
+    let one_sided = (material_flags & U::splat(MATERIAL_TWO_SIDED)).eq(U::splat(0));
+    one_sided.select(cos, cos.abs())
 }
 
 /// Solid-angle density with which [`sample`] picks a point at squared distance `d2` and
@@ -148,8 +156,14 @@ pub fn area_pdf(frame: &FrameParams, radiance: [f32; 3], d2: f32, cos_l: f32) ->
 /// technique of density `pdf_b`.
 #[inline]
 pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
+    power_heuristic_lanes::<1>(pdf_a.into(), pdf_b.into()).into()
+}
+
+/// [`power_heuristic`] in every lane.
+#[inline(always)]
+pub fn power_heuristic_lanes<const N: usize>(pdf_a: F<N>, pdf_b: F<N>) -> F<N> {
     let (a, b) = (pdf_a * pdf_a, pdf_b * pdf_b);
-    if a + b > 0.0 { a / (a + b) } else { 0.0 }
+    (a + b).gt(F::splat(0.0)).select(a / (a + b), F::splat(0.0))
 }
 
 #[cfg(test)]

@@ -62,6 +62,20 @@ fn luminance(c: [f32; 3]) -> f64 {
     0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64
 }
 
+/// Appends the running sums `sums` (n + 1 of them, from 0 to the total) divided by their total,
+/// the last exactly 1; a table that sums to nothing as the uniform one, k/n.
+fn push_cdf(distribution: &mut Vec<f32>, sums: &[f64]) {
+    let n = sums.len() - 1;
+    let total = sums[n];
+    for (k, &m) in sums.iter().enumerate() {
+        distribution.push(if total > 0.0 {
+            if k == n { 1.0 } else { (m / total) as f32 }
+        } else {
+            k as f32 / n as f32
+        });
+    }
+}
+
 /// The GPU's record of `env` (its map, if any, being texture `texture`) and the map's sampling
 /// distribution: the marginal cumulative distribution over rows (height + 1 values), then
 /// each row's over columns (width + 1 values each). `emitters`: the scene also has area
@@ -147,23 +161,9 @@ pub fn build(env: &Environment, texture: u32, emitters: bool) -> (FlatEnvironmen
             }
             distribution = Vec::with_capacity(h + 1 + h * (w + 1));
             let total = marginal[h];
-            for (k, &m) in marginal.iter().enumerate() {
-                distribution.push(if total > 0.0 {
-                    if k == h { 1.0 } else { (m / total) as f32 }
-                } else {
-                    k as f32 / h as f32
-                });
-            }
+            push_cdf(&mut distribution, &marginal);
             for j in 0..h {
-                let row = &rows[j * (w + 1)..(j + 1) * (w + 1)];
-                let sum = row[w];
-                for (k, &r) in row.iter().enumerate() {
-                    distribution.push(if sum > 0.0 {
-                        if k == w { 1.0 } else { (r / sum) as f32 }
-                    } else {
-                        k as f32 / w as f32
-                    });
-                }
+                push_cdf(&mut distribution, &rows[j * (w + 1)..(j + 1) * (w + 1)]);
             }
             if total <= 0.0 {
                 // A black map: nothing to sample by importance.

@@ -16,6 +16,7 @@
 //! albedo bends fastest (grazing μ at r = 1).
 
 use crate::math::V3;
+use crate::math::lanes::{F, V, clamp01};
 
 const PI: f32 = std::f32::consts::PI;
 
@@ -23,43 +24,71 @@ const PI: f32 = std::f32::consts::PI;
 /// normal incidence (the material's colour).
 #[inline]
 pub fn schlick(f0: V3<f32>, cos: f32) -> V3<f32> {
-    let m = (1.0 - cos).clamp(0.0, 1.0);
+    schlick_lanes::<1>(f0.into(), cos.into()).into()
+}
+
+/// [`schlick`] in every lane.
+#[inline(always)]
+pub fn schlick_lanes<const N: usize>(f0: V<N>, cos: F<N>) -> V<N> {
+    let m = clamp01(F::splat(1.0) - cos);
     let m5 = m * m * m * m * m;
-    f0 + (V3::splat(1.0) - f0) * m5
+    f0 + (V::splat([1.0; 3]) - f0).scale(m5)
 }
 
 /// GGX normal distribution D(h) for cos θ_h = `cos_h` (Walter et al. 2007, eq. 33).
 #[inline]
 pub fn ggx_d(alpha: f32, cos_h: f32) -> f32 {
+    ggx_d_lanes::<1>(alpha.into(), cos_h.into()).into()
+}
+
+/// [`ggx_d`] in every lane.
+#[inline(always)]
+pub fn ggx_d_lanes<const N: usize>(alpha: F<N>, cos_h: F<N>) -> F<N> {
     let a2 = alpha * alpha;
     let c2 = cos_h * cos_h;
-    let den = c2 * (a2 - 1.0) + 1.0;
-    a2 / (PI * den * den)
+    let den = c2 * (a2 - F::splat(1.0)) + F::splat(1.0);
+    a2 / (F::splat(PI) * den * den)
 }
 
 /// Smith's Λ for GGX at a direction with cos θ = `cos` (Heitz 2014, eq. 72).
 #[inline]
 pub fn ggx_lambda(alpha: f32, cos: f32) -> f32 {
-    let c2 = (cos * cos).max(1e-12);
-    let a2_tan2 = alpha * alpha * (1.0 - c2).max(0.0) / c2;
-    0.5 * ((1.0 + a2_tan2).sqrt() - 1.0)
+    ggx_lambda_lanes::<1>(alpha.into(), cos.into()).into()
+}
+
+/// [`ggx_lambda`] in every lane.
+#[inline(always)]
+pub fn ggx_lambda_lanes<const N: usize>(alpha: F<N>, cos: F<N>) -> F<N> {
+    let one = F::splat(1.0);
+    let c2 = (cos * cos).max(F::splat(1e-12));
+    let a2_tan2 = alpha * alpha * (one - c2).max(F::splat(0.0)) / c2;
+    F::splat(0.5) * ((one + a2_tan2).sqrt() - one)
 }
 
 /// A visible normal of the GGX surface seen from `wo` (local, z up): Heitz, "Sampling the GGX
 /// Distribution of Visible Normals", JCGT 2018, listing 1 (isotropic α).
 #[inline]
 pub fn ggx_sample_visible(alpha: f32, wo: V3<f32>, u1: f32, u2: f32) -> V3<f32> {
-    let vh = V3::new(alpha * wo.x, alpha * wo.y, wo.z).normalize();
+    ggx_sample_visible_lanes::<1>(alpha.into(), wo.into(), u1.into(), u2.into()).into()
+}
+
+/// [`ggx_sample_visible`] in every lane.
+#[inline(always)]
+pub fn ggx_sample_visible_lanes<const N: usize>(alpha: F<N>, wo: V<N>, u1: F<N>, u2: F<N>) -> V<N> {
+    let (zero, one) = (F::splat(0.0), F::splat(1.0));
+    let vh = V::new(alpha * wo.x, alpha * wo.y, wo.z).normalize();
     let lensq = vh.x * vh.x + vh.y * vh.y;
-    let t1 = if lensq > 0.0 { V3::new(-vh.y, vh.x, 0.0) / lensq.sqrt() } else { V3::new(1.0, 0.0, 0.0) };
-    let t2 = vh.cross(t1);
+    let len = lensq.sqrt();
+    let has = lensq.gt(zero);
+    let t1 = V::new(has.select(-vh.y / len, one), has.select(vh.x / len, zero), has.select(zero / len, zero));
+    let t2 = V::new(vh.y * t1.z - vh.z * t1.y, vh.z * t1.x - vh.x * t1.z, vh.x * t1.y - vh.y * t1.x);
     let r = u1.sqrt();
-    let (sin_phi, cos_phi) = crate::math::sin_cos_turns(u2);
-    let p1 = r * cos_phi;
-    let s = 0.5 * (1.0 + vh.z);
-    let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * (r * sin_phi);
-    let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
-    V3::new(alpha * nh.x, alpha * nh.y, nh.z.max(0.0)).normalize()
+    let (sin, cos) = u2.sin_cos_turns();
+    let p1 = r * cos;
+    let s = F::splat(0.5) * (one + vh.z);
+    let p2 = (one - s) * (one - p1 * p1).max(zero).sqrt() + s * (r * sin);
+    let nh = t1.scale(p1) + t2.scale(p2) + vh.scale((one - p1 * p1 - p2 * p2).max(zero).sqrt());
+    V::new(alpha * nh.x, alpha * nh.y, nh.z.max(zero)).normalize()
 }
 
 /// Samples along perceptual roughness r ∈ [0, 1] (r_i = i / (R − 1)).
@@ -135,18 +164,44 @@ fn integrate(alpha: f32, mu: f64) -> (f64, f64) {
 /// operations as `ggx_albedo` in `bsdf.wgsl`).
 #[inline]
 pub fn lookup(r: f32, cos_o: f32) -> (f32, f32) {
+    let (e1, e5) = lookup_lanes::<1>(r.into(), cos_o.into());
+    (e1.into(), e5.into())
+}
+
+/// [`lookup`] in every lane: the table's entries read lane after lane, interpolated in lanes.
+// (A lane loop over several arrays indexed by the lane.)
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+pub fn lookup_lanes<const N: usize>(r: F<N>, cos_o: F<N>) -> (F<N>, F<N>) {
     let t = table();
-    let x = r.clamp(0.0, 1.0) * (ROUGHNESS_STEPS - 1) as f32;
-    let y = cos_o.clamp(0.0, 1.0) * (COS_STEPS - 1) as f32;
-    let (x0, y0) = (x.floor().min((ROUGHNESS_STEPS - 2) as f32), y.floor().min((COS_STEPS - 2) as f32));
+    let x = clamp01(r) * F::splat((ROUGHNESS_STEPS - 1) as f32);
+    let y = clamp01(cos_o) * F::splat((COS_STEPS - 1) as f32);
+    let x0 = x.map(f32::floor).min(F::splat((ROUGHNESS_STEPS - 2) as f32));
+    let y0 = y.map(f32::floor).min(F::splat((COS_STEPS - 2) as f32));
     let (fx, fy) = (x - x0, y - y0);
-    let k = x0 as usize * COS_STEPS + y0 as usize;
-    let at = |base: usize| {
-        let top = t[base + k] * (1.0 - fy) + t[base + k + 1] * fy;
-        let bottom = t[base + k + COS_STEPS] * (1.0 - fy) + t[base + k + COS_STEPS + 1] * fy;
-        top * (1.0 - fx) + bottom * fx
-    };
-    (at(0), at(ROUGHNESS_STEPS * COS_STEPS))
+    let mut e = [[0.0f32; N]; 8];
+    for l in 0..N {
+        let k = x0.0[l] as usize * COS_STEPS + y0.0[l] as usize;
+        for (j, base) in [0, ROUGHNESS_STEPS * COS_STEPS].into_iter().enumerate() {
+            let i = (base + k).min(t.len() - COS_STEPS - 2);
+            e[4 * j][l] = t[i];
+            e[4 * j + 1][l] = t[i + 1];
+            e[4 * j + 2][l] = t[i + COS_STEPS];
+            e[4 * j + 3][l] = t[i + COS_STEPS + 1];
+        }
+    }
+    (bilerp(&e[..4], fx, fy), bilerp(&e[4..], fx, fy))
+}
+
+/// The four table entries `e` (the corners (0, 0), (0, 1), (1, 0), (1, 1)) interpolated at
+/// (fx, fy). (A function, not a closure: the compiler left the closure out of line, in code
+/// without the ISA's instructions.)
+#[inline(always)]
+fn bilerp<const N: usize>(e: &[[f32; N]], fx: F<N>, fy: F<N>) -> F<N> {
+    let one = F::splat(1.0);
+    let top = F(e[0]) * (one - fy) + F(e[1]) * fy;
+    let bottom = F(e[2]) * (one - fy) + F(e[3]) * fy;
+    top * (one - fx) + bottom * fx
 }
 
 #[cfg(test)]

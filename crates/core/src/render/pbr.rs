@@ -15,6 +15,7 @@
 use super::microfacet;
 use crate::layout::FlatMaterial;
 use crate::math::V3;
+use crate::math::lanes::{F, V, clamp01};
 
 /// The pbr material's α is at least this (perceptual roughness 0.032): its lobe stays a
 /// density (next-event estimation and MIS work on it) and is a mirror to the eye.
@@ -43,36 +44,72 @@ pub struct PbrLobes {
     pub p_spec: f32,
 }
 
-#[inline]
-fn luminance(c: V3<f32>) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
-}
-
 /// The lobes of pbr material `m` seen at cos θ_o = `cos_o`.
 pub fn pbr_lobes(m: &FlatMaterial, cos_o: f32) -> PbrLobes {
     let base = V3::from_array(m.color);
-    let metal = m.metallic.clamp(0.0, 1.0);
-    let r = m.roughness.clamp(0.0, 1.0);
-    let alpha = (r * r).max(MIN_PBR_ALPHA);
-    let (e1, e5) = microfacet::lookup(r, cos_o);
-    let e1 = e1.max(1e-3);
-    let lost = (1.0 - e1) / e1;
-    let metal_weight = (V3::splat(1.0) + base * lost) * metal;
-    let coat_comp = 1.0 + PBR_F0 * lost;
-    let coat_weight = (1.0 - metal) * coat_comp;
+    let l = pbr_lobes_lanes::<1>(base.into(), m.metallic.into(), m.roughness.into(), cos_o.into());
+    PbrLobes {
+        alpha: l.alpha.into(),
+        reflectance: l.reflectance.into(),
+        metal_weight: l.metal_weight.into(),
+        coat_weight: l.coat_weight.into(),
+        diffuse: l.diffuse.into(),
+        spec_albedo: l.spec_albedo.into(),
+        p_spec: l.p_spec.into(),
+    }
+}
+
+/// [`PbrLobes`] in lanes.
+#[derive(Clone, Copy)]
+pub struct PbrLobesLanes<const N: usize> {
+    pub alpha: F<N>,
+    pub reflectance: V<N>,
+    pub metal_weight: V<N>,
+    pub coat_weight: F<N>,
+    pub diffuse: V<N>,
+    pub spec_albedo: V<N>,
+    pub p_spec: F<N>,
+}
+
+#[inline(always)]
+fn luminance<const N: usize>(c: V<N>) -> F<N> {
+    F::splat(0.2126) * c.x + F::splat(0.7152) * c.y + F::splat(0.0722) * c.z
+}
+
+/// [`pbr_lobes`] in every lane, of base colour `base`, metalness `metallic` and roughness
+/// `roughness` at cos θ_o = `cos_o`.
+#[inline(always)]
+pub fn pbr_lobes_lanes<const N: usize>(base: V<N>, metallic: F<N>, roughness: F<N>, cos_o: F<N>) -> PbrLobesLanes<N> {
+    let one = F::splat(1.0);
+    let metal = clamp01(metallic);
+    let r = clamp01(roughness);
+    let alpha = (r * r).max(F::splat(MIN_PBR_ALPHA));
+    let (e1, e5) = microfacet::lookup_lanes(r, cos_o);
+    let e1 = e1.max(F::splat(1e-3));
+    let lost = (one - e1) / e1;
+    let metal_weight = (V::splat([1.0; 3]) + base.scale(lost)).scale(metal);
+    let coat_comp = one + F::splat(PBR_F0) * lost;
+    let coat_weight = (one - metal) * coat_comp;
     // The coat's albedo, compensated: what the base below does not receive.
-    let coat = coat_comp * (PBR_F0 * e1 + (1.0 - PBR_F0) * e5);
-    let diffuse = base * ((1.0 - metal) * (1.0 - coat).max(0.0));
-    let metal_albedo = (base * e1 + (V3::splat(1.0) - base) * e5).mul_elem(metal_weight);
-    let spec_albedo = metal_albedo + V3::splat((1.0 - metal) * coat);
+    let coat = coat_comp * (F::splat(PBR_F0) * e1 + F::splat(1.0 - PBR_F0) * e5);
+    let diffuse = base.scale((one - metal) * (one - coat).max(F::splat(0.0)));
+    let metal_albedo = (base.scale(e1) + (V::splat([1.0; 3]) - base).scale(e5)).mul_elem(metal_weight);
+    let c = (one - metal) * coat;
+    let spec_albedo = metal_albedo + V::new(c, c, c);
     let (ls, ld) = (luminance(spec_albedo), luminance(diffuse));
-    let p_spec = if ls + ld > 0.0 { ls / (ls + ld) } else { 0.0 };
-    PbrLobes { alpha, reflectance: base, metal_weight, coat_weight, diffuse, spec_albedo, p_spec }
+    let p_spec = (ls + ld).gt(F::splat(0.0)).select(ls / (ls + ld), F::splat(0.0));
+    PbrLobesLanes { alpha, reflectance: base, metal_weight, coat_weight, diffuse, spec_albedo, p_spec }
 }
 
 /// The lobe's Fresnel term at cos θ between wo and the microfacet normal.
 #[inline]
 pub fn pbr_fresnel(l: &PbrLobes, cos: f32) -> V3<f32> {
-    microfacet::schlick(l.reflectance, cos).mul_elem(l.metal_weight)
-        + microfacet::schlick(V3::splat(PBR_F0), cos) * l.coat_weight
+    pbr_fresnel_lanes::<1>(l.reflectance.into(), l.metal_weight.into(), l.coat_weight.into(), cos.into()).into()
+}
+
+/// [`pbr_fresnel`] in every lane, of the lobes' reflectance, metal weight and coat weight.
+#[inline(always)]
+pub fn pbr_fresnel_lanes<const N: usize>(reflectance: V<N>, metal_weight: V<N>, coat_weight: F<N>, cos: F<N>) -> V<N> {
+    microfacet::schlick_lanes(reflectance, cos).mul_elem(metal_weight)
+        + microfacet::schlick_lanes(V::splat([PBR_F0; 3]), cos).scale(coat_weight)
 }

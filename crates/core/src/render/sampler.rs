@@ -7,20 +7,44 @@
 //! best-quality 32-bit hash of their survey at this cost. Everything is u32 arithmetic, exact
 //! on both backends.
 
+use crate::math::lanes::{F, M, U, fract};
+
 pub const PCG_MULT: u32 = 747_796_405;
 pub const PCG_INC: u32 = 2_891_336_453;
 
 /// One PCG step of `v` followed by its RXS-M-XS output permutation.
 #[inline]
 pub fn pcg_hash(v: u32) -> u32 {
-    let state = v.wrapping_mul(PCG_MULT).wrapping_add(PCG_INC);
-    permute(state)
+    pcg_hash_lanes::<1>(v.into()).into()
 }
 
-#[inline]
-fn permute(state: u32) -> u32 {
-    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
-    (word >> 22) ^ word
+/// [`pcg_hash`] in every lane.
+#[inline(always)]
+pub fn pcg_hash_lanes<const N: usize>(v: U<N>) -> U<N> {
+    permute(v.wrapping_mul(U::splat(PCG_MULT)).wrapping_add(U::splat(PCG_INC)))
+}
+
+/// PCG's RXS-M-XS output permutation of the state.
+#[inline(always)]
+fn permute<const N: usize>(state: U<N>) -> U<N> {
+    let shift = (state >> U::splat(28)).wrapping_add(U::splat(4));
+    let word = ((state >> shift) ^ state).wrapping_mul(U::splat(277_803_737));
+    (word >> U::splat(22)) ^ word
+}
+
+/// The state [`Sampler::new`] starts from, in every lane (one seed).
+#[inline(always)]
+pub fn stream_lanes<const N: usize>(pixel: U<N>, sample: U<N>, seed: u32) -> U<N> {
+    pcg_hash_lanes(pixel ^ pcg_hash_lanes(sample.wrapping_add(U::splat(pcg_hash(seed)))))
+}
+
+/// [`Sampler::next_f32`] in every lane: each stream is advanced where `on`, and every lane's
+/// number is returned.
+#[inline(always)]
+pub fn next_f32_lanes<const N: usize>(state: &mut U<N>, on: M<N>) -> F<N> {
+    let old = *state;
+    *state = on.select_u(old.wrapping_mul(U::splat(PCG_MULT)).wrapping_add(U::splat(PCG_INC)), old);
+    permute(old).top24_f32() * F::splat(1.0 / 16_777_216.0)
 }
 
 /// The random stream of one pixel sample.
@@ -33,7 +57,7 @@ impl Sampler {
     /// The stream of sample `sample` of pixel `pixel` (row-major index) under `seed`.
     #[inline]
     pub fn new(pixel: u32, sample: u32, seed: u32) -> Self {
-        Self { state: pcg_hash(pixel ^ pcg_hash(sample.wrapping_add(pcg_hash(seed)))) }
+        Self { state: stream_lanes::<1>(pixel.into(), sample.into(), seed).into() }
     }
 
     /// The stream at the point `state` was read from (for paths kept lane by lane).
@@ -52,13 +76,16 @@ impl Sampler {
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
         self.state = old.wrapping_mul(PCG_MULT).wrapping_add(PCG_INC);
-        permute(old)
+        permute::<1>(old.into()).into()
     }
 
     /// Uniform in [0, 1): the top 24 bits, so the conversion is exact on both backends.
     #[inline]
     pub fn next_f32(&mut self) -> f32 {
-        (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
+        let mut state = U::from(self.state);
+        let u = next_f32_lanes::<1>(&mut state, true.into());
+        self.state = state.into();
+        u.into()
     }
 }
 
@@ -68,11 +95,18 @@ impl Sampler {
 /// share one pattern.
 #[inline]
 pub fn pixel_jitter(pixel: u32, s: u32, seed: u32) -> (f32, f32) {
-    let h = pcg_hash(pixel ^ pcg_hash(seed ^ 0x5bd1_e995));
-    let rx = (h >> 8) as f32 * (1.0 / 16_777_216.0);
-    let ry = (pcg_hash(h) >> 8) as f32 * (1.0 / 16_777_216.0);
-    let (ox, oy) = super::camera::sample_offset(s);
-    let fract = |v: f32| v - v.floor();
+    let (ox, oy) = pixel_jitter_lanes::<1>(pixel.into(), s.into(), seed);
+    (ox.into(), oy.into())
+}
+
+/// [`pixel_jitter`] in every lane, for one seed.
+#[inline(always)]
+pub fn pixel_jitter_lanes<const N: usize>(pixel: U<N>, s: U<N>, seed: u32) -> (F<N>, F<N>) {
+    let h = pcg_hash_lanes(pixel ^ U::splat(pcg_hash(seed ^ 0x5bd1_e995)));
+    let scale = F::splat(1.0 / 16_777_216.0);
+    let rx = h.top24_f32() * scale;
+    let ry = pcg_hash_lanes(h).top24_f32() * scale;
+    let (ox, oy) = super::camera::sample_offset_lanes(s);
     (fract(ox + rx), fract(oy + ry))
 }
 

@@ -1,5 +1,6 @@
 //! Origins of secondary rays (`spawn.wgsl` is the twin).
 
+use crate::math::lanes::{F, U, V};
 use crate::math::{Ray, V3};
 
 /// ULPs of the offset, after Wächter & Binder (RTG ch. 6), see [`spawn_origin`].
@@ -9,10 +10,11 @@ const INT_SCALE: f32 = 32.0;
 /// units across for it to matter.
 pub const MIN_ULP: f32 = f32::MIN_POSITIVE;
 
-/// One ULP of the positive finite float `m`, exactly (integer arithmetic on its bits).
-#[inline]
-fn ulp(m: f32) -> f32 {
-    f32::from_bits(m.to_bits() + 1) - m
+/// One ULP of the positive finite float `m` in every lane, exactly (integer arithmetic on its
+/// bits).
+#[inline(always)]
+fn ulp<const N: usize>(m: F<N>) -> F<N> {
+    F::from_bits(m.to_bits().wrapping_add(U::splat(1))) - m
 }
 
 /// The origin of a ray leaving the hit point p = p0 + μd of `ray` on the side of the unit
@@ -38,17 +40,29 @@ fn ulp(m: f32) -> f32 {
 ///   black, shadows gone).
 #[inline]
 pub fn spawn_origin(ray: &Ray<f32>, t: f32, n: V3<f32>) -> V3<f32> {
-    let p = ray.at(t);
-    let step = |p: f32, o: f32, n: f32| -> f32 {
-        let m = (o.abs() + t.abs()).max(p.abs()).max(MIN_ULP);
-        p + INT_SCALE * n * ulp(m).max(MIN_ULP)
+    spawn_origin_lanes::<1>(ray.origin.into(), ray.dir.into(), t.into(), n.into()).into()
+}
+
+/// [`spawn_origin`] in every lane, for the rays (`o`, `d`) hit at `t`.
+#[inline(always)]
+pub fn spawn_origin_lanes<const N: usize>(o: V<N>, d: V<N>, t: F<N>, n: V<N>) -> V<N> {
+    let min_ulp = F::splat(MIN_ULP);
+    let step = |p: F<N>, o: F<N>, n: F<N>| -> F<N> {
+        let m = (o.abs() + t.abs()).max(p.abs()).max(min_ulp);
+        p + F::splat(INT_SCALE) * n * ulp(m).max(min_ulp)
     };
-    V3::new(step(p.x, ray.origin.x, n.x), step(p.y, ray.origin.y, n.y), step(p.z, ray.origin.z, n.z))
+    let p = o + d.scale(t);
+    V::new(step(p.x, o.x, n.x), step(p.y, o.y, n.y), step(p.z, o.z, n.z))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One ULP of `m`, through the lanes' routine.
+    fn ulp1(m: f32) -> f32 {
+        ulp::<1>(m.into()).into()
+    }
 
     #[test]
     fn offset_moves_to_the_normal_side_by_ulps_of_the_inputs() {
@@ -59,8 +73,8 @@ mod tests {
         let p = ray.at(t);
         let q = spawn_origin(&ray, t, n);
         assert!(q.x > p.x && q.y < p.y && q.z == 0.0);
-        let step = 32.0 * n.x * ulp(1000.0);
-        assert!(((q.x - p.x) - step).abs() <= ulp(p.x), "{} vs {step}", q.x - p.x);
+        let step = 32.0 * n.x * ulp1(1000.0);
+        assert!(((q.x - p.x) - step).abs() <= ulp1(p.x), "{} vs {step}", q.x - p.x);
     }
 
     #[test]
@@ -68,7 +82,7 @@ mod tests {
         // p.x is small but formed from two terms of size 1e5: the step follows 1e5's ULP.
         let ray = Ray::new(V3::new(1.0e5f32, 0.0, 0.0), V3::new(-1.0, 0.0, 0.0));
         let q = spawn_origin(&ray, 99_990.0, V3::new(1.0, 0.0, 0.0));
-        assert!(q.x - 10.0 >= 32.0 * ulp(2.0e5) * 0.99, "{}", q.x - 10.0);
+        assert!(q.x - 10.0 >= 32.0 * ulp1(2.0e5) * 0.99, "{}", q.x - 10.0);
     }
 
     /// Near the origin the step is still 32 ULPs of |p0ᵢ| + |μ|: relative to the scene, not a
@@ -78,7 +92,7 @@ mod tests {
         for scale in [1e-3f32, 1e-6, 1e-9] {
             let ray = Ray::new(V3::zero(), V3::new(0.0f32, 0.0, 1.0));
             let q = spawn_origin(&ray, scale, V3::new(0.0, 0.0, -1.0));
-            assert_eq!(q.z, scale - 32.0 * ulp(scale), "at {scale}");
+            assert_eq!(q.z, scale - 32.0 * ulp1(scale), "at {scale}");
             assert!(scale - q.z < 1e-5 * scale);
         }
         // At zero the ULP of the smallest normal float: never a zero step.

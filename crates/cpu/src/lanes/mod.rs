@@ -4,7 +4,8 @@
 //! ([`paths`]). Every round walks the rays of the batch's live paths (as bundles,
 //! [`crate::accel::bundle`]: 16 lanes with AVX-512, 8 with AVX2, 4 elsewhere, or one at a
 //! time, as [`Choice`] measures faster), puts the paths whose rays hit first, shades their
-//! vertices a bundle at a time ([`shade`]), traces the shadow rays of next-event estimation,
+//! vertices a bundle at a time ([`path`], by the steps of [`vertex`]), traces the shadow rays
+//! of next-event estimation,
 //! and moves the live paths together, so that bundles stay full while paths end.
 //!
 //! Every path performs the operations of [`super::path::radiance`] in the same order (the
@@ -13,27 +14,35 @@
 //! so the image equals the one-path-at-a-time tracer's ([`super::path`]) bit for bit;
 //! `tests/path_tracing.rs` checks it.
 //!
-//! Whitted mode takes the bundles for its camera rays only ([`whitted`]).
+//! Each file is the lane form of the stage it is named for, the twin of the WGSL module of that
+//! name as the one-path code is (`path.rs` of `path.wgsl`'s vertex shading, `emitters.rs`,
+//! `environment.rs`, `pbr.rs`, `surface.rs`, `camera.rs`); the small formulas both forms use
+//! are written once in `strahl_core::render` over lanes, the one-path form their one-lane
+//! case. Whitted mode takes the bundles for its camera rays only ([`whitted`]).
 
 mod camera;
+mod emitters;
 mod environment;
+mod facts;
 mod guide;
-mod lights;
+mod path;
 mod paths;
 mod pbr;
-mod shade;
 mod surface;
 mod texels;
+mod vertex;
 pub mod whitted;
 
 use super::path::NeeRay;
 use super::shade::ShadeInputs;
 use crate::accel::bundle::{self, BundleRays, Isa, MAX_WIDTH};
 use crate::accel::wide_traverse;
+pub use facts::Facts;
 use paths::Paths;
-pub use shade::Facts;
 use strahl_core::math::{Ray, V3};
 use strahl_core::primitives::{Hit, Nearest};
+pub use vertex::Fallbacks;
+use vertex::{Bundle, Out};
 
 use std::time::Duration;
 use web_time::Instant;
@@ -147,6 +156,27 @@ impl Choice {
     }
 }
 
+/// Samples `samples` of pixels `x0 .. x0 + width` of row `y`.
+#[derive(Clone, Debug)]
+pub struct Span {
+    pub y: u32,
+    pub x0: u32,
+    pub width: u32,
+    pub samples: std::ops::Range<u32>,
+}
+
+/// A method `$name` of [`Tracer`]: [`Tracer::row`]'s work in lanes of `$n`, compiled with the
+/// target features `$features` (called only where the processor has them).
+macro_rules! isa_row {
+    ($name:ident, $features:literal, $n:literal) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        fn $name(&mut self, inp: &ShadeInputs, span: Span, add: &mut impl FnMut(usize, V3<f32>)) {
+            self.row_n::<$n>(inp, span, add)
+        }
+    };
+}
+
 /// The lane tracer's working memory, kept from batch to batch (one per thread).
 pub struct Tracer<'f> {
     isa: Isa,
@@ -169,6 +199,8 @@ pub struct Tracer<'f> {
     batches: u32,
     /// Where the time went, when timed.
     pub times: StageTimes,
+    /// Vertices shaded in lanes and those left to the one-path code.
+    pub fallbacks: Fallbacks,
     timed: bool,
 }
 
@@ -191,70 +223,31 @@ impl<'f> Tracer<'f> {
             choice: Choice::default(),
             batches: 0,
             times: StageTimes::default(),
+            fallbacks: Fallbacks::default(),
             timed,
         }
     }
 
-    /// Samples `samples` of pixels `x0 .. x0 + width` of row `y`: each sample's radiance (0
-    /// where not finite) goes to `add(pixel offset, radiance)`, every pixel's in sample order.
-    pub fn row(
-        &mut self,
-        inp: &ShadeInputs,
-        y: u32,
-        x0: u32,
-        width: u32,
-        samples: std::ops::Range<u32>,
-        add: &mut impl FnMut(usize, V3<f32>),
-    ) {
+    /// The samples of the pixels of `span`: each sample's radiance (0 where not finite) goes to
+    /// `add(pixel offset, radiance)`, every pixel's in sample order.
+    pub fn row(&mut self, inp: &ShadeInputs, span: Span, add: &mut impl FnMut(usize, V3<f32>)) {
         match self.isa {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: the processor has AVX-512 (a tracer is only made for lanes it runs).
-            Isa::Avx512 => unsafe { self.row_avx512(inp, y, x0, width, samples, add) },
+            Isa::Avx512 => unsafe { self.row_avx512(inp, span, add) },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above, AVX2.
-            Isa::Avx2 => unsafe { self.row_avx2(inp, y, x0, width, samples, add) },
-            _ => self.row_n::<4>(inp, y, x0, width, samples, add),
+            Isa::Avx2 => unsafe { self.row_avx2(inp, span, add) },
+            _ => self.row_n::<4>(inp, span, add),
         }
     }
 
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    fn row_avx512(
-        &mut self,
-        inp: &ShadeInputs,
-        y: u32,
-        x0: u32,
-        width: u32,
-        samples: std::ops::Range<u32>,
-        add: &mut impl FnMut(usize, V3<f32>),
-    ) {
-        self.row_n::<16>(inp, y, x0, width, samples, add)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    fn row_avx2(
-        &mut self,
-        inp: &ShadeInputs,
-        y: u32,
-        x0: u32,
-        width: u32,
-        samples: std::ops::Range<u32>,
-        add: &mut impl FnMut(usize, V3<f32>),
-    ) {
-        self.row_n::<8>(inp, y, x0, width, samples, add)
-    }
+    isa_row!(row_avx512, "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma,bmi1,bmi2,lzcnt,popcnt", 16);
+    isa_row!(row_avx2, "avx2,fma,bmi1,bmi2,lzcnt,popcnt", 8);
 
     #[inline(always)]
-    fn row_n<const N: usize>(
-        &mut self,
-        inp: &ShadeInputs,
-        y: u32,
-        x0: u32,
-        width: u32,
-        samples: std::ops::Range<u32>,
-        add: &mut impl FnMut(usize, V3<f32>),
-    ) {
+    fn row_n<const N: usize>(&mut self, inp: &ShadeInputs, span: Span, add: &mut impl FnMut(usize, V3<f32>)) {
+        let Span { y, x0, width, samples } = span;
         let f = inp.frame;
         let spp = samples.len() as u32;
         if spp == 0 {
@@ -378,7 +371,7 @@ impl<'f> Tracer<'f> {
             // hit records and makes them itself after bundles.
             let measuring = timed.then(Instant::now);
             // The round's hits first, so that the shading of one bundle can ask for the next
-            // one's primitives ahead (shade::prefetch).
+            // one's primitives ahead (path::prefetch).
             self.nearest.clear();
             let records = match walk {
                 Walk::OneRay => {
@@ -410,20 +403,19 @@ impl<'f> Tracer<'f> {
             };
             t = Self::lap(t, &mut times.trace);
             self.hits_first(live, records);
-            shade::prefetch(inp, &self.nearest[..N.min(live)]);
+            path::prefetch(inp, &self.nearest[..N.min(live)]);
             let mut k = 0;
             while k < live {
                 let n = N.min(live - k);
                 let ahead = (k + N).min(live)..(k + 2 * N).min(live);
-                shade::prefetch(inp, &self.nearest[ahead]);
-                let hits = &self.nearest[k..];
-                let records = records.then(|| &self.one_hits[k..]);
+                path::prefetch(inp, &self.nearest[ahead]);
+                let b = Bundle { k, n, hits: &self.nearest[k..], records: records.then(|| &self.one_hits[k..]) };
+                let mut out = Out { more: &mut self.more, nee: &mut self.shadow, fallbacks: &mut self.fallbacks };
                 // (Called directly, not through a pointer: inlined here, in the ISA's code.)
-                let (p, more, shadow) = (&mut self.paths, &mut self.more, &mut self.shadow);
                 if self.facts.rich {
-                    shade::shade::<N, true>(inp, self.facts, p, k, n, hits, records, more, shadow);
+                    path::shade::<N, true>(inp, self.facts, &mut self.paths, &b, &mut out);
                 } else {
-                    shade::shade::<N, false>(inp, self.facts, p, k, n, hits, records, more, shadow);
+                    path::shade::<N, false>(inp, self.facts, &mut self.paths, &b, &mut out);
                 }
                 t = Self::lap(t, &mut times.shade);
                 k += n;

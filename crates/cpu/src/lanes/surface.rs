@@ -9,12 +9,11 @@
 // instructions.
 #![allow(clippy::needless_range_loop)]
 
-use super::pbr::clamp01;
 use super::texels::Texels;
 use strahl_core::layout::{
     ATTR_NORMALS, FlatScene, FlatTexture, TEXTURE_UV1, TEXTURE_WRAP_U_SHIFT, TEXTURE_WRAP_V_SHIFT,
 };
-use strahl_core::math::lanes::{F, M, U, V};
+use strahl_core::math::lanes::{F, M, U, V, clamp01};
 use strahl_core::render::texture::{lerp4, texel, wrap_index};
 use strahl_core::scene::texture::Wrap;
 

@@ -7,7 +7,7 @@
 //!
 //! The bundle walk's hits are the one-ray walk's, bit for bit, and so are their records
 //! ([`Primitives::hit`] of them), and each pixel adds its samples in sample order, so the
-//! image equals [`shade::shade_pixel`]'s bit for bit (`tests/lane_tracer.rs`).
+//! image equals [`shade::shade_pixel`]'s bit for bit (`crates/cpu/tests/lane_tracer.rs`).
 //!
 //! [`Primitives::hit`]: strahl_core::primitives::Primitives::hit
 

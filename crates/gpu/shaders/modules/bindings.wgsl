@@ -1,6 +1,6 @@
 // The scene's storage buffers (group 0), uploaded once per scene, and the per-dispatch frame.
 // No CPU twin: the host packs and binds them in crates/gpu/src/objects.rs and
-// crates/gpu/src/lib.rs (SceneBuffers).
+// crates/gpu/src/scene_buffers.rs (SceneBuffers).
 //
 // Seven bindings at most, so that with a program's own (the trace program's three, the render
 // programs' one) no pipeline binds more than the 8 storage buffers per stage that WebGPU

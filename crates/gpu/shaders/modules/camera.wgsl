@@ -1,4 +1,4 @@
-// Primary rays: twin of crates/core/src/render/camera.rs.
+// Primary rays: twin of crates/core/src/render/camera.rs (in lanes, a batch's: crates/cpu/src/lanes/camera.rs).
 #define_import_path strahl::camera
 
 #import strahl::types::Frame

@@ -1,4 +1,4 @@
-// Light sampling for next-event estimation: twin of crates/core/src/render/emitters.rs (area emitters chosen
+// Light sampling for next-event estimation: twin of crates/core/src/render/emitters.rs (in lanes crates/cpu/src/lanes/emitters.rs; area emitters chosen
 // in proportion to power by inverting their cdf, points uniform on the chosen triangle or
 // sphere; point and directional lights evaluated one by one at every vertex, not chosen).
 #define_import_path strahl::emitters

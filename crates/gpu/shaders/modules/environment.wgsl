@@ -1,4 +1,4 @@
-// Environment lighting: twin of crates/core/src/render/environment.rs (radiance along a direction, the
+// Environment lighting: twin of crates/core/src/render/environment.rs (in lanes crates/cpu/src/lanes/environment.rs; radiance along a direction, the
 // piecewise-constant importance distribution over an equirectangular map and its density,
 // uniform sphere sampling for a constant sky, Whitted's spherical-harmonic diffuse light).
 //

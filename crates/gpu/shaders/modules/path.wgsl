@@ -1,5 +1,5 @@
-// One vertex of a path-traced sample: twin of crates/core/src/render/path.rs (PathState, path_start,
-// shade_vertex). Both GPU path tracers run it: the megakernel (megakernel.wgsl) traces the vertex's
+// One vertex of a path-traced sample: twin of crates/cpu/src/path.rs (PathState, path_start,
+// shade_vertex; in lanes crates/cpu/src/lanes/path.rs). Both GPU path tracers run it: the megakernel (megakernel.wgsl) traces the vertex's
 // shadow ray at once, the wavefront one (wavefront.wgsl) queues it for a kernel of its own.
 //
 // Per vertex, in this order: the emission of what the segment hit (MIS-weighted against the

@@ -1,4 +1,4 @@
-// glTF's metallic-roughness material: twin of crates/core/src/render/pbr.rs (the two lobes seen from
+// glTF's metallic-roughness material: twin of crates/core/src/render/pbr.rs (its lobes in lanes there too; eval and sample in lanes crates/cpu/src/lanes/pbr.rs: the two lobes seen from
 // cos(theta_o): a GGX lobe with Schlick's F0 = mix(0.04, base, metallic), compensated for
 // multiple scattering, over a Lambertian base weighted by what the coat lets through).
 #define_import_path strahl::pbr

@@ -1,4 +1,4 @@
-// Whitted shading: twin of crates/core/src/render/shade.rs (same stack order, same sums).
+// Whitted shading: twin of crates/cpu/src/shade.rs (same stack order, same sums).
 //
 // Shader defs: LIGHTS (any light; with it POINT_LIGHTS / DIRECTIONAL_LIGHTS), MIRROR,
 // DIELECTRIC, EMISSIVE (which material kinds exist; diffuse is always compiled), and

@@ -1,4 +1,4 @@
-// What a ray sees where it hits a triangle: twin of crates/core/src/render/surface.rs (the material with
+// What a ray sees where it hits a triangle: twin of crates/core/src/render/surface.rs (in lanes crates/cpu/src/lanes/surface.rs; the material with
 // its textures and vertex colours applied, the shading normal from vertex normals and the
 // normal map, the shading frame the integrators use).
 //

@@ -2,6 +2,19 @@
 
 use super::*;
 
+/// Where a node puts what it holds in strahl's space: the node's world matrix after glTF's
+/// mirror of z (`m`), then the scene file's placement.
+pub(super) struct NodeSpace<'a> {
+    m: DMat4,
+    placement: &'a Transform,
+}
+
+impl NodeSpace<'_> {
+    fn point(&self, p: DVec3) -> V3<f64> {
+        let q = self.m.transform_point3(p);
+        self.placement.apply(V3::new(q.x, q.y, q.z))
+    }
+}
 impl Reader<'_> {
     /// Walks the default scene (else the first; else every root node) and places its meshes,
     /// cameras and lights.
@@ -90,112 +103,132 @@ impl Reader<'_> {
         let n = self.doc.nodes().nth(node).expect("validated node index");
         // strahl = placement ∘ mirror(z) ∘ world.
         let mirror = DMat4::from_scale(DVec3::new(1.0, 1.0, -1.0));
-        let m = mirror * *world;
-        let point = |p: DVec3| -> V3<f64> {
-            let q = m.transform_point3(p);
-            placement.apply(V3::new(q.x, q.y, q.z))
-        };
+        let space = NodeSpace { m: mirror * *world, placement };
         if let Some(mesh) = n.mesh() {
-            let flip = (DMat3::from_mat4(m).determinant() < 0.0) != placement.mirrors();
-            for p in mesh.primitives() {
-                let key = (mesh.index(), p.index());
-                if let std::collections::hash_map::Entry::Vacant(slot) = cache.entry(key) {
-                    slot.insert(self.read_primitive(&mesh, &p)?);
-                }
-                let Some(data) = &cache[&key] else { continue };
-                let placed: Vec<V3<f64>> = data.positions.iter().map(|&v| point(v)).collect();
-                if let Some(bad) = placed.iter().position(|v| !v.is_finite()) {
-                    return Err(format!(
-                        "nodes[{node}]: vertex {bad} of meshes[{}] is not finite once placed",
-                        mesh.index()
-                    ));
-                }
-                // Normals by the inverse transpose of the node's (mirrored) matrix, then the
-                // placement's.
-                let normal_matrix = DMat3::from_mat4(m).inverse().transpose();
-                let normals: Option<Vec<[f32; 3]>> = data.normals.as_ref().map(|ns| {
-                    ns.iter()
-                        .map(|&n| {
-                            let q = normal_matrix * n;
-                            placement.apply_normal(V3::new(q.x, q.y, q.z)).cast::<f32>().to_array()
-                        })
-                        .collect()
-                });
-                let n = self.out.triangles.len();
-                let attrs = &mut self.out.attrs;
-                // A list that earlier triangles lacked starts with defaults for them: texel
-                // (0, 0), the face's normal (zero), white.
-                pub(super) fn open<T: Copy>(list: &mut Vec<[T; 3]>, here: bool, n: usize, default: T) -> bool {
-                    if (here || !list.is_empty()) && list.len() < n {
-                        list.resize(n, [default; 3]);
-                    }
-                    here || !list.is_empty()
-                }
-                let with_uvs = open(&mut attrs.uvs, data.uvs.is_some(), n, [0.0; 2]);
-                let with_uvs1 = open(&mut attrs.uvs1, data.uvs1.is_some(), n, [0.0; 2]);
-                let with_normals = open(&mut attrs.normals, normals.is_some(), n, [0.0; 3]);
-                let with_colors = open(&mut attrs.colors, data.colors.is_some(), n, [1.0; 4]);
-                pub(super) fn corners<T: Copy>(list: &Option<Vec<T>>, t: &[u32; 3], default: T, flip: bool) -> [T; 3] {
-                    let mut c = list.as_ref().map_or([default; 3], |l| t.map(|i| l[i as usize]));
-                    if flip {
-                        c.swap(1, 2);
-                    }
-                    c
-                }
-                for t in &data.triangles {
-                    let mut v = t.map(|i| placed[i as usize]);
-                    if flip {
-                        v.swap(1, 2);
-                    }
-                    self.out.triangles.push(Triangle { v });
-                    self.out.triangle_materials.push(data.material);
-                    let attrs = &mut self.out.attrs;
-                    if with_uvs {
-                        attrs.uvs.push(corners(&data.uvs, t, [0.0; 2], flip));
-                    }
-                    if with_uvs1 {
-                        attrs.uvs1.push(corners(&data.uvs1, t, [0.0; 2], flip));
-                    }
-                    if with_normals {
-                        attrs.normals.push(corners(&normals, t, [0.0; 3], flip));
-                    }
-                    if with_colors {
-                        attrs.colors.push(corners(&data.colors, t, [1.0; 4], flip));
-                    }
-                }
-            }
+            self.place_mesh(node, &mesh, &space, cache)?;
         }
         if let Some(cam) = n.camera() {
-            match cam.projection() {
-                gltf::camera::Projection::Perspective(p) => {
-                    let eye = point(DVec3::ZERO);
-                    let ahead = point(DVec3::new(0.0, 0.0, -1.0));
-                    let above = point(DVec3::new(0.0, 1.0, 0.0));
-                    let fov_y = (p.yfov() as f64).to_degrees();
-                    let camera = Camera { eye, look_at: ahead, up: above - eye, fov_y };
-                    let at = format!("cameras[{}]", cam.index());
-                    if !(fov_y > 0.0 && fov_y < 180.0) {
-                        return Err(format!("{at}.perspective.yfov: {} radians is not a field of view", p.yfov()));
-                    }
-                    if (ahead - eye).length() == 0.0
-                        || (above - eye).cross(ahead - eye).length()
-                            <= 1e-9 * (above - eye).length() * (ahead - eye).length()
-                    {
-                        return Err(format!("nodes[{node}]: the transform of {at} is degenerate"));
-                    }
-                    let aspect = p.aspect_ratio().map(|a| a as f64).filter(|a| *a > 0.0 && a.is_finite());
-                    self.out.cameras.push(PlacedCamera {
-                        index: cam.index(),
-                        name: cam.name().map(String::from),
-                        camera,
-                        aspect,
-                    });
+            self.place_camera(node, &cam, &space)?;
+        }
+        self.place_light(node, &n, &space)
+    }
+
+    /// The triangles of `mesh`'s primitives, with their attributes, placed by `space`.
+    fn place_mesh(
+        &mut self,
+        node: usize,
+        mesh: &gltf::Mesh,
+        space: &NodeSpace,
+        cache: &mut HashMap<(usize, usize), Option<PrimitiveData>>,
+    ) -> Res<()> {
+        let flip = (DMat3::from_mat4(space.m).determinant() < 0.0) != space.placement.mirrors();
+        for p in mesh.primitives() {
+            let key = (mesh.index(), p.index());
+            if let std::collections::hash_map::Entry::Vacant(slot) = cache.entry(key) {
+                slot.insert(self.read_primitive(mesh, &p)?);
+            }
+            let Some(data) = &cache[&key] else { continue };
+            let placed: Vec<V3<f64>> = data.positions.iter().map(|&v| space.point(v)).collect();
+            if let Some(bad) = placed.iter().position(|v| !v.is_finite()) {
+                return Err(format!(
+                    "nodes[{node}]: vertex {bad} of meshes[{}] is not finite once placed",
+                    mesh.index()
+                ));
+            }
+            // Normals by the inverse transpose of the node's (mirrored) matrix, then the
+            // placement's.
+            let normal_matrix = DMat3::from_mat4(space.m).inverse().transpose();
+            let normals: Option<Vec<[f32; 3]>> = data.normals.as_ref().map(|ns| {
+                ns.iter()
+                    .map(|&n| {
+                        let q = normal_matrix * n;
+                        space.placement.apply_normal(V3::new(q.x, q.y, q.z)).cast::<f32>().to_array()
+                    })
+                    .collect()
+            });
+            let n = self.out.triangles.len();
+            let attrs = &mut self.out.attrs;
+            // A list that earlier triangles lacked starts with defaults for them: texel
+            // (0, 0), the face's normal (zero), white.
+            pub(super) fn open<T: Copy>(list: &mut Vec<[T; 3]>, here: bool, n: usize, default: T) -> bool {
+                if (here || !list.is_empty()) && list.len() < n {
+                    list.resize(n, [default; 3]);
                 }
-                gltf::camera::Projection::Orthographic(_) => {
-                    self.warn(format!("cameras[{}]: orthographic cameras are not read", cam.index()));
+                here || !list.is_empty()
+            }
+            let with_uvs = open(&mut attrs.uvs, data.uvs.is_some(), n, [0.0; 2]);
+            let with_uvs1 = open(&mut attrs.uvs1, data.uvs1.is_some(), n, [0.0; 2]);
+            let with_normals = open(&mut attrs.normals, normals.is_some(), n, [0.0; 3]);
+            let with_colors = open(&mut attrs.colors, data.colors.is_some(), n, [1.0; 4]);
+            pub(super) fn corners<T: Copy>(list: &Option<Vec<T>>, t: &[u32; 3], default: T, flip: bool) -> [T; 3] {
+                let mut c = list.as_ref().map_or([default; 3], |l| t.map(|i| l[i as usize]));
+                if flip {
+                    c.swap(1, 2);
+                }
+                c
+            }
+            for t in &data.triangles {
+                let mut v = t.map(|i| placed[i as usize]);
+                if flip {
+                    v.swap(1, 2);
+                }
+                self.out.triangles.push(Triangle { v });
+                self.out.triangle_materials.push(data.material);
+                let attrs = &mut self.out.attrs;
+                if with_uvs {
+                    attrs.uvs.push(corners(&data.uvs, t, [0.0; 2], flip));
+                }
+                if with_uvs1 {
+                    attrs.uvs1.push(corners(&data.uvs1, t, [0.0; 2], flip));
+                }
+                if with_normals {
+                    attrs.normals.push(corners(&normals, t, [0.0; 3], flip));
+                }
+                if with_colors {
+                    attrs.colors.push(corners(&data.colors, t, [1.0; 4], flip));
                 }
             }
         }
+        Ok(())
+    }
+
+    /// A perspective camera `cam` placed by `space` (an orthographic one is left out with a
+    /// warning).
+    fn place_camera(&mut self, node: usize, cam: &gltf::Camera, space: &NodeSpace) -> Res<()> {
+        match cam.projection() {
+            gltf::camera::Projection::Perspective(p) => {
+                let eye = space.point(DVec3::ZERO);
+                let ahead = space.point(DVec3::new(0.0, 0.0, -1.0));
+                let above = space.point(DVec3::new(0.0, 1.0, 0.0));
+                let fov_y = (p.yfov() as f64).to_degrees();
+                let camera = Camera { eye, look_at: ahead, up: above - eye, fov_y };
+                let at = format!("cameras[{}]", cam.index());
+                if !(fov_y > 0.0 && fov_y < 180.0) {
+                    return Err(format!("{at}.perspective.yfov: {} radians is not a field of view", p.yfov()));
+                }
+                if (ahead - eye).length() == 0.0
+                    || (above - eye).cross(ahead - eye).length()
+                        <= 1e-9 * (above - eye).length() * (ahead - eye).length()
+                {
+                    return Err(format!("nodes[{node}]: the transform of {at} is degenerate"));
+                }
+                let aspect = p.aspect_ratio().map(|a| a as f64).filter(|a| *a > 0.0 && a.is_finite());
+                self.out.cameras.push(PlacedCamera {
+                    index: cam.index(),
+                    name: cam.name().map(String::from),
+                    camera,
+                    aspect,
+                });
+            }
+            gltf::camera::Projection::Orthographic(_) => {
+                self.warn(format!("cameras[{}]: orthographic cameras are not read", cam.index()));
+            }
+        }
+        Ok(())
+    }
+
+    /// The punctual light of node `n`, if any, placed by `space`.
+    fn place_light(&mut self, node: usize, n: &gltf::Node, space: &NodeSpace) -> Res<()> {
         let known_type = |i: usize| {
             let json = self.doc.as_json().extensions.as_ref().and_then(|e| e.khr_lights_punctual.as_ref());
             json.and_then(|l| l.lights.get(i))
@@ -214,11 +247,11 @@ impl Reader<'_> {
             let at = format!("KHR_lights_punctual.lights[{}]", light.index());
             match light.kind() {
                 gltf::khr_lights_punctual::Kind::Point => {
-                    let position = point(DVec3::ZERO);
+                    let position = space.point(DVec3::ZERO);
                     self.out.lights.push(Light::Point { position, intensity });
                 }
                 gltf::khr_lights_punctual::Kind::Directional => {
-                    let d = point(DVec3::new(0.0, 0.0, -1.0)) - point(DVec3::ZERO);
+                    let d = space.point(DVec3::new(0.0, 0.0, -1.0)) - space.point(DVec3::ZERO);
                     if d.length() > 0.0 && d.is_finite() {
                         self.out.lights.push(Light::Directional { direction: d.normalize(), intensity });
                     } else {

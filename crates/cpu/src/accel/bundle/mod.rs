@@ -438,7 +438,7 @@ fn walk_nearest<const N: usize, K: Kernels>(
                 continue;
             }
         } else {
-            leaf_nearest(w, prims, lanes, word, mask, best, &mut t, &mut part);
+            leaf_nearest(w, prims, lanes, (word, mask), best, (&mut t, &mut part));
         }
         match stack.pop_within(&best.cull, lanes.on) {
             Some((wd, m)) => (word, mask) = (wd, m),
@@ -447,17 +447,16 @@ fn walk_nearest<const N: usize, K: Kernels>(
     }
 }
 
+/// Offers to `best` the hits of the lanes of `mask` on the primitives of leaf `word` (`t` and
+/// `part`: scratch for the distances and parts each test finds).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn leaf_nearest<const N: usize>(
     w: &WideBvh,
     prims: &Primitives<f32>,
     lanes: &Lanes<N>,
-    word: u32,
-    mask: u32,
+    (word, mask): (u32, u32),
     best: &mut Best<N>,
-    t: &mut [f32; N],
-    part: &mut [u8; N],
+    (t, part): (&mut [f32; N], &mut [u8; N]),
 ) {
     let (blocks, _) = w.leaf(word);
     let surface = [Part::Surface as u8; N];

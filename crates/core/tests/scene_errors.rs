@@ -106,7 +106,7 @@ fn too_many_objects() {
 
 #[test]
 fn all_shipped_scenes_load() {
-    let files = files_in("assets/scenes", "toml");
+    let files = files_in("../../assets/scenes", "toml");
     assert!(files.len() >= 8);
     for path in &files {
         let s = Scene::load(path).unwrap_or_else(|e| panic!("{e}"));
@@ -124,7 +124,7 @@ fn all_shipped_scenes_load() {
 
 #[test]
 fn lecture_scene_is_the_problem_time() {
-    let s = Scene::load("assets/scenes/lecture.toml").unwrap();
+    let s = Scene::load("../../assets/scenes/lecture.toml").unwrap();
     let spheres: Vec<_> = s
         .objects
         .iter()
@@ -142,7 +142,7 @@ fn lecture_scene_is_the_problem_time() {
 
 #[test]
 fn seed_scene_matches_the_anchor() {
-    let s = Scene::load("assets/scenes/seed.toml").unwrap();
+    let s = Scene::load("../../assets/scenes/seed.toml").unwrap();
     let want_fov = 2.0 * (28f64.to_radians().tan() * 480.0 / 640.0).atan().to_degrees();
     assert!((s.camera.fov_y - want_fov).abs() < 1e-12, "{}", s.camera.fov_y);
     assert_eq!(s.render.max_depth, 5);
@@ -163,7 +163,7 @@ fn seed_scene_matches_the_anchor() {
 
 #[test]
 fn shipped_cube_faces_outward() {
-    let s = Scene::load("assets/scenes/mesh.toml").unwrap();
+    let s = Scene::load("../../assets/scenes/mesh.toml").unwrap();
     let Geometry::Mesh { triangles, .. } = &s.objects[0].geometry else { panic!() };
     assert_eq!(triangles.len(), 12);
     let n = 36.0;

@@ -1,17 +1,15 @@
-//! The CPU's lane path tracer (`render/lanes`) against its reference, the one-path-at-a-time
-//! tracer (`render/path`): the same image bit for bit, with every lane set this processor
+//! The CPU's lane path tracer (`lanes/`) against its reference, the one-path-at-a-time
+//! tracer (`path.rs`): the same image bit for bit, with every lane set this processor
 //! runs and each walk of the rays after the camera's (bundles, one ray at a time, measured),
 //! on every shipped scene and on the golden scenes (area lights, glass, smooth and rough
 //! mirrors, textures, an emissive texture, an environment map), and on sample counts and row
 //! widths that leave batches and bundles part full.
 
-mod common;
-
-use common::png;
 use std::path::{Path, PathBuf};
 use strahl_core::image::Region;
 use strahl_core::render::Prepared;
 use strahl_core::scene::{RenderMode, Scene};
+use strahl_core::testutil::{png, shipped_scenes};
 use strahl_cpu::accel::bundle::Isa;
 use strahl_cpu::lanes::Walk;
 use strahl_cpu::{self as cpu, PathTracer};
@@ -57,13 +55,13 @@ fn check(name: &str, prep: &Prepared, w: u32, h: u32, spp: u32, base: u32) -> us
 }
 
 fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    strahl_core::testutil::repo_root()
 }
 
 #[test]
 fn lanes_equal_the_one_by_one_tracer_on_the_shipped_scenes() {
     let mut pixels = 0;
-    for path in common::shipped_scenes() {
+    for path in shipped_scenes() {
         let prep = prepared(&path);
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         // 37 columns: rows that fill no bundle evenly; 3 samples from sample 5.
@@ -243,14 +241,14 @@ fn lanes_equal_the_one_by_one_tracer_on_a_textured_gltf_under_a_map() {
     check("pbr.toml", &prep, 40, 30, 6, 3);
 }
 
-/// Whitted with the camera rays walked as bundles (`render/lanes/whitted.rs`) gives the image
+/// Whitted with the camera rays walked as bundles (`lanes/whitted.rs`) gives the image
 /// of one ray tree at a time, bit for bit, with every lane set, on every shipped scene (point
 /// and area lights, glass, mirrors), the golden scenes (textures, an environment map) and the
 /// textured glTF; rows and sample counts that leave bundles part full.
 #[test]
 fn whitted_with_bundled_camera_rays_equals_one_ray_at_a_time() {
     let dir = tempfile::tempdir().unwrap();
-    let mut scenes = common::shipped_scenes();
+    let mut scenes = shipped_scenes();
     scenes.extend(["cornell.toml", "textured.toml"].map(|s| root().join("tests/golden").join(s)));
     scenes.push(pbr_scene(dir.path()));
     let (mut pixels, mut lit_pixels) = (0, 0);

@@ -55,22 +55,23 @@ pub(super) fn in_lanes(g: &FlatScene) -> bool {
     })
 }
 
+/// What light samples read: the scene and frame, whether its area emitters are sampled in
+/// lanes ([`in_lanes`]), and the tables and decoded textures of the searches.
+pub(super) struct LightScene<'a> {
+    pub g: &'a FlatScene,
+    pub f: &'a FrameParams,
+    pub in_lanes: bool,
+    pub guides: &'a Guides,
+    pub texels: &'a Texels,
+}
+
 /// [`emitters::sample`] for shading points `x` with numbers `u`, in the lanes of `want`:
 /// the choice between the environment and the area emitters as it makes it; the
 /// environment's samples in lanes where it is a map sampled by importance; the area
-/// emitters' in lanes where `lanes` ([`in_lanes`]). The others lane after lane.
+/// emitters' in lanes where `scene.in_lanes`. The others lane after lane.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub(super) fn sample<const N: usize>(
-    g: &FlatScene,
-    f: &FrameParams,
-    lanes: bool,
-    guides: &Guides,
-    texels: &Texels,
-    x: V<N>,
-    u: [F<N>; 3],
-    want: [bool; N],
-) -> Samples<N> {
+pub(super) fn sample<const N: usize>(scene: &LightScene, x: V<N>, u: [F<N>; 3], want: [bool; N]) -> Samples<N> {
+    let LightScene { g, f, in_lanes: lanes, guides, texels } = *scene;
     let mut out = Samples::none();
     // The lanes that sample the environment, and u[0] rescaled for the others.
     let mut to_env = [false; N];
