@@ -51,8 +51,8 @@ pub fn spawn_origin_lanes<const N: usize>(o: V<N>, d: V<N>, t: F<N>, n: V<N>) ->
 }
 
 /// One axis of [`spawn_origin_lanes`]. A function of its own, not a closure: LLVM kept a
-/// closure here out of line (three calls a vertex), and the lane tracer's seed-scene render
-/// was 7 % in it, 15 % slower in all.
+/// closure here out of line, where it lacks the calling lane set's target features, three
+/// calls a vertex (the cost is in the book's performance chapter).
 #[inline(always)]
 fn spawn_axis<const N: usize>(p: F<N>, o: F<N>, n: F<N>, t: F<N>) -> F<N> {
     let min_ulp = F::splat(MIN_ULP);
