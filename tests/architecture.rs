@@ -2,7 +2,8 @@
 //! WGSL file has a row, each row names the Rust files that the shader's first comment names
 //! (its twin, or "none" where the comment says it has no CPU twin, with its host), and every
 //! named file exists. It also checks the layering: no import circles within a crate, and no
-//! source file outside `tests/` over 800 lines.
+//! source file outside `tests/` over 800 lines; and the Python package builds its dependencies
+//! with the features the workspace builds them with, so that its build reuses theirs.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -428,4 +429,36 @@ fn no_function_outside_tests_is_over_150_lines() {
 fn function_lengths_count_from_fn_to_its_brace_past_braces_in_strings() {
     let code = "fn a() {\n    let s = \"}\";\n    let c = '{';\n    // }\n}\nfn b<'x>(v: &'x u8);\nimpl T { fn c(&self) {\n} }\n#[cfg(test)]\nfn d() {}";
     assert_eq!(function_lengths(code), vec![("a".to_string(), 5), ("c".to_string(), 2)]);
+}
+
+/// `cargo tree`'s lines (`name vX.Y.Z [features]`) for the given selection, host platform.
+fn tree_lines(selection: &[&str], edges: &str) -> BTreeSet<String> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = std::process::Command::new(cargo)
+        .args(["tree", "--offline", "--locked", "-e", edges, "-f", "{p} [{f}]", "--prefix", "none"])
+        .args(selection)
+        .current_dir(root())
+        .output()
+        .expect("cargo tree runs");
+    assert!(out.status.success(), "cargo tree {selection:?}: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout).unwrap().lines().map(|l| l.replace(" (*)", "").replace(" (proc-macro)", "")).collect()
+}
+
+/// `pip install ./python` builds strahl-python alone, and cargo turns on in each dependency only
+/// the features that package's own graph asks for. Where that differs from the whole workspace's
+/// test build (`cargo test --workspace --all-targets`, dev-dependencies included), every crate
+/// above the dependency is built again: .ci/run once spent 14 minutes so. python/Cargo.toml names
+/// the missing features; this checks that each package of its graph, with its features, is one
+/// the workspace's build has too.
+#[test]
+fn the_python_package_builds_its_dependencies_as_the_workspace_does() {
+    let workspace = tree_lines(&["--workspace"], "normal,build,dev");
+    let python = tree_lines(&["-p", "strahl-python"], "normal,build");
+    let differ: Vec<_> =
+        python.iter().filter(|l| !l.starts_with("strahl-python ") && !workspace.contains(*l)).collect();
+    assert!(
+        differ.is_empty(),
+        "these dependencies of strahl-python have other features than in the workspace's build; name the \
+         workspace's features in python/Cargo.toml: {differ:#?}"
+    );
 }
