@@ -269,6 +269,8 @@ fn os_errors_are_printed_once() {
 fn bad_arguments_exit_with_status_2() {
     let dir = tempfile::tempdir().unwrap();
     let x = dir.path().join("x.png");
+    let xe = dir.path().join("x.exr");
+    let xe = xe.to_str().unwrap();
     let sphere = scene("sphere.toml");
     let s = sphere.to_str().unwrap();
     let rays = dir.path().join("rays.csv");
@@ -286,6 +288,12 @@ fn bad_arguments_exit_with_status_2() {
         vec!["trace", s, "--rays", rays.to_str().unwrap(), "--backend", "gpu", "--precision", "f64"],
         vec!["stiff", "--scale", "0"],
         vec!["converge", s, "--reference", "ref.png", "-o", dir.path().to_str().unwrap()],
+        vec!["render", s, "-o", x.to_str().unwrap(), "--view", "filmic"],
+        vec!["render", s, "-o", x.to_str().unwrap(), "--exposure", "nan"],
+        vec!["render", s, "-o", x.to_str().unwrap(), "--exposure", "40"],
+        vec!["render", s, "-o", xe, "--view", "agx"],
+        vec!["render", s, "-o", xe, "--exposure", "-1"],
+        vec!["merge", "part.exr", "-o", xe, "--view", "neutral"],
     ];
     // Without the viewer every `view` is refused before its arguments are read (below).
     let views: Vec<Vec<&str>> = vec![vec!["view", s, "--scale", "2"], vec!["view", s, "--screenshot", "shot.jpg"]];
@@ -296,7 +304,45 @@ fn bad_arguments_exit_with_status_2() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.starts_with("error:") && !err.contains("panicked"), "{args:?}: {err}");
     }
-    assert!(!x.exists());
+    assert!(!x.exists() && !dir.path().join("x.exr").exists());
+}
+
+/// An orange lamp of radiance (50, 12, 2) seen directly: the standard view clips it to white,
+/// AgX and Khronos PBR Neutral keep its hue (red above green above blue, blue below white), and
+/// four stops less exposure show it orange in the standard view too. The pixels are those
+/// `strahl_core::display` computes from the same radiance, so the PNG went through the view.
+#[test]
+fn png_views_keep_the_hue_of_a_bright_lamp() {
+    use strahl_core::display::ViewTransform;
+    let dir = tempfile::tempdir().unwrap();
+    let lamp = dir.path().join("lamp.toml");
+    std::fs::write(
+        &lamp,
+        "[camera]\neye = [0.0, 0.0, -5.0]\nlook_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 30.0\n\
+         [image]\nwidth = 8\nheight = 8\n[render]\nambient = [0.0, 0.0, 0.0]\nbackground = [0.0, 0.0, 0.0]\n\
+         [[materials]]\nname = \"lamp\"\ntype = \"emissive\"\ncolor = [0.0, 0.0, 0.0]\nradiance = [50.0, 12.0, 2.0]\n\
+         [[objects]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"lamp\"\n",
+    )
+    .unwrap();
+    let centre = |args: &[&str]| {
+        let png = dir.path().join("lamp.png");
+        let base = ["render", lamp.to_str().unwrap(), "-o", png.to_str().unwrap(), "--backend", "cpu"];
+        let out = strahl(&[&base[..], args].concat());
+        assert!(out.status.success(), "{args:?}: {}", stderr_of(&out));
+        image::open(&png).unwrap().to_rgb8().get_pixel(4, 4).0
+    };
+    // The emitter's radiance reaches the camera unchanged (no light, black background).
+    let expect = |v: ViewTransform, ev: f32| v.encode8([50.0, 12.0, 2.0], ev);
+    assert_eq!(centre(&[]), [255, 255, 255]);
+    assert_eq!(centre(&["--view", "standard"]), [255, 255, 255]);
+    for (name, v) in [("agx", ViewTransform::Agx), ("neutral", ViewTransform::Neutral)] {
+        let got = centre(&["--view", name]);
+        assert_eq!(got, expect(v, 0.0), "{name}");
+        assert!(got[0] > got[1] && got[1] > got[2] && got[2] < 255, "{name}: {got:?}");
+    }
+    let dim = centre(&["--exposure", "-4"]);
+    assert_eq!(dim, expect(ViewTransform::Standard, -4.0));
+    assert!(dim[0] == 255 && dim[1] < 255 && dim[2] < dim[1], "{dim:?}");
 }
 
 /// A BOM-prefixed rays CSV (as spreadsheets write) reads as without one.

@@ -5,6 +5,7 @@ mod bench;
 mod bench_rays;
 mod converge;
 mod merge;
+mod output_image;
 mod progress;
 mod render;
 mod stiff;

@@ -16,9 +16,11 @@ use strahl_gpu::{self as gpu, SceneBuffers};
 pub struct RenderArgs {
     /// Scene file: TOML, or a glTF file (.gltf, .glb) on its own.
     pub scene: PathBuf,
-    /// Output image: .png (8-bit sRGB) or .exr (linear float).
+    /// Output image: .png (8-bit sRGB, through --view) or .exr (linear float, scene-referred).
     #[arg(short, long, value_parser = super::image_file_name)]
     pub output: PathBuf,
+    #[command(flatten)]
+    pub display: super::output_image::DisplayArgs,
     /// Where to render (default: STRAHL_BACKEND, else auto: a hardware GPU, else the faster
     /// of lavapipe and the cpu for the mode, the cpu without a Vulkan adapter).
     #[arg(long, value_enum)]
@@ -105,6 +107,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     // A missing, read-only or misnamed output fails now, not after the render.
     strahl_core::output::check_file_target(&a.output)?;
+    a.display.check(&a.output)?;
     if a.camera.is_some() && !strahl_core::scene::gltf::is_gltf_path(&a.scene) {
         return Err(super::usage_error("--camera: only a glTF file (.gltf, .glb) has cameras to choose from"));
     }
@@ -208,8 +211,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             render_on_cpu,
         )?,
     };
-    let is_exr = a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-    if is_exr {
+    if super::output_image::is_exr(&a.output) {
         let description = strahl_core::parts::Description { scene: &a.scene, mode, backend, device, tile: a.tile };
         let placement = ExrPlacement {
             full: (width, height),
@@ -218,7 +220,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         };
         strahl_core::image::write_exr(&a.output, &image, &placement)?;
     } else {
-        image.save(&a.output)?;
+        a.display.save_png(&image, &a.output)?;
     }
     println!("wrote {}", a.output.display());
     Ok(())

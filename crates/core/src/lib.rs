@@ -1,7 +1,7 @@
 //! strahl-core: what both backends share: the scene read from its files, the primitives and
 //! their intersections (f32, the GPU's mirror, and f64, the oracle), the BVH and its GPU
 //! layout, the render stages' formulas (the f32 twins of the shaders), the buffer layouts, and
-//! images and their files.
+//! images, their files and the view transforms that display them.
 //!
 //! Data flows one way: scene file → [`scene::Scene`] → [`primitives::Primitives`] →
 //! [`accel::Bvh`] → [`render::Prepared`] → a backend (`strahl-cpu`, or `strahl-gpu` on a
@@ -11,6 +11,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod accel;
+pub mod display;
 pub mod errors;
 pub mod geometry;
 pub mod image;
