@@ -7,8 +7,8 @@
 //!   +6.5 stops from the ends), a sigmoid, and the inverse inset. The sigmoid is Benjamin
 //!   Wrensch's 6th-degree polynomial fit of AgX's base contrast curve ("Minimal AgX
 //!   implementation", iolite engine, 2023), whose output is display-encoded: it is written as
-//!   the code value, without a further sRGB curve. The fit stays within 0.002 of the curve it
-//!   approximates (its author's figure).
+//!   the code value, without a further sRGB curve. How far the fit lies from Blender's own
+//!   lookup table is not measured here (Blender's OCIO configuration is not installed).
 //! - **Khronos PBR Neutral** (Emmett Lalish, Khronos 3D Commerce, 2024,
 //!   KhronosGroup/ToneMapping `PBR_Neutral`): base colours up to 0.76 pass unchanged (less
 //!   a small offset near black), brighter ones are compressed towards a peak of 1 and
@@ -20,8 +20,9 @@
 //!   matrix; display-linear, then sRGB-encoded.
 //!
 //! Exposure multiplies the radiance by 2^EV before any of them. Each transform is a few
-//! multiply-adds and a log or power per channel in f32; the 8-bit result is exact to the code
-//! except at rounding boundaries.
+//! multiply-adds and a log or power per channel in f32, a few ulps from the same formula in
+//! f64: far below the 1/255 of an 8-bit code, so only a value within that of a rounding
+//! boundary can land one code off.
 
 use crate::image::{Image, linear_to_srgb, save_encoded};
 use anyhow::{Context, Result};
@@ -35,7 +36,7 @@ pub enum ViewTransform {
     Standard,
     /// Troy Sobotka's AgX (Blender's default).
     Agx,
-    /// Khronos PBR Neutral (the glTF sample viewer's).
+    /// Khronos PBR Neutral (for product renders; the glTF sample viewer offers it).
     Neutral,
     /// Stephen Hill's fit of ACES 1.0 (three.js's `ACESFilmicToneMapping`).
     Aces,
