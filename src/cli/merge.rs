@@ -21,7 +21,7 @@ pub fn run(a: MergeArgs) -> Result<()> {
     strahl_core::output::check_file_target(&a.output)?;
     a.display.check(&a.output)?;
     let (image, placement) = strahl_core::parts::merge(&a.parts)?;
-    if super::output_image::is_exr(&a.output) {
+    if strahl_core::image::is_exr_path(&a.output) {
         strahl_core::image::write_exr(&a.output, &image, &placement)?;
     } else {
         a.display.save_png(&image, &a.output)?;

@@ -5,9 +5,9 @@ use anyhow::Result;
 use clap::Args;
 use std::path::Path;
 use strahl_core::display::ViewTransform;
-use strahl_core::image::Image;
+use strahl_core::image::{Image, is_exr_path};
 
-#[derive(Args, Debug, Clone, Copy)]
+#[derive(Args, Debug)]
 pub struct DisplayArgs {
     /// How a PNG shows radiance: standard (each channel clipped at 1), agx (Blender's
     /// default), neutral (Khronos PBR Neutral) or aces (Hill's ACES fit) [default: standard].
@@ -28,15 +28,10 @@ fn parse_exposure(s: &str) -> Result<f32, String> {
     }
 }
 
-/// Whether `output` names an EXR file (else a PNG: the names were checked while parsing).
-pub fn is_exr(output: &Path) -> bool {
-    output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"))
-}
-
 impl DisplayArgs {
     /// A usage error where the flags are given with an EXR output, before any work.
     pub fn check(&self, output: &Path) -> Result<()> {
-        if is_exr(output) && (self.view.is_some() || self.exposure.is_some()) {
+        if is_exr_path(output) && (self.view.is_some() || self.exposure.is_some()) {
             return Err(super::usage_error(format!(
                 "--view and --exposure shape a PNG; {} is an EXR, which keeps the linear radiance as rendered",
                 output.display()

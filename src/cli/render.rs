@@ -211,7 +211,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             render_on_cpu,
         )?,
     };
-    if super::output_image::is_exr(&a.output) {
+    if strahl_core::image::is_exr_path(&a.output) {
         let description = strahl_core::parts::Description { scene: &a.scene, mode, backend, device, tile: a.tile };
         let placement = ExrPlacement {
             full: (width, height),

@@ -24,7 +24,7 @@
 //! f64: far below the 1/255 of an 8-bit code, so only a value within that of a rounding
 //! boundary can land one code off.
 
-use crate::image::{Image, linear_to_srgb, save_encoded};
+use crate::image::{Image, code8, linear_to_srgb, save_encoded};
 use anyhow::{Context, Result};
 use std::path::Path;
 
@@ -71,7 +71,7 @@ impl ViewTransform {
 
     /// The 8-bit code of each channel.
     pub fn encode8(self, rgb: [f32; 3], exposure: f32) -> [u8; 3] {
-        self.encode(rgb, exposure).map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
+        self.encode(rgb, exposure).map(code8)
     }
 }
 

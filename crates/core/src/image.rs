@@ -25,7 +25,17 @@ pub fn to_srgb8(v: f32) -> u8 {
     if v.is_nan() {
         return 0;
     }
-    (linear_to_srgb(v) * 255.0 + 0.5) as u8
+    code8(linear_to_srgb(v))
+}
+
+/// The nearest 8-bit code of a display-encoded value, clamped to [0, 1].
+pub fn code8(encoded: f32) -> u8 {
+    (encoded.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// Whether `path` names an EXR file (by its extension, in any case).
+pub fn is_exr_path(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"))
 }
 
 impl Image {
@@ -63,7 +73,7 @@ impl Image {
     /// Reads an EXR (linear) or PNG (sRGB, converted to linear) file. An EXR file must hold
     /// its whole image: a part of a split render (a smaller data window) is refused.
     pub fn load(path: &Path) -> Result<Image> {
-        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+        if is_exr_path(path) {
             let exr = read_exr(path)?;
             let (w, h) = exr.placement.full;
             ensure!(
