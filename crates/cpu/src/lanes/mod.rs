@@ -165,14 +165,22 @@ pub struct Span {
     pub samples: std::ops::Range<u32>,
 }
 
-/// A method `$name` of [`Tracer`]: [`Tracer::row`]'s work in lanes of `$n`, compiled with the
-/// target features `$features` (called only where the processor has them).
-macro_rules! isa_row {
-    ($name:ident, $features:literal, $n:literal) => {
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        fn $name(&mut self, inp: &ShadeInputs, span: Span, add: &mut impl FnMut(usize, V3<f32>)) {
-            self.row_n::<$n>(inp, span, add)
+/// `$module::batch(tracer, …)`: one batch of [`Tracer::row`] in lanes of `$n`, compiled with
+/// the target features `$features` where given (called only where the processor has them).
+/// Each is a free function in a module of its own, as rustc places a function in the codegen
+/// unit of its module (and a method in that of its type's): with `codegen-units` high enough
+/// that the units are not merged (strahl-cpu's profile in the workspace's `Cargo.toml`), LLVM
+/// optimises the three forms, each the whole lane tracer inlined into one function and about a
+/// minute of LLVM's time, on as many threads as the build has instead of one after another.
+macro_rules! isa_batch {
+    ($module:ident, $n:literal $(, $features:literal)?) => {
+        mod $module {
+            use super::{ShadeInputs, Span, Tracer};
+            $(#[target_feature(enable = $features)])?
+            #[inline(never)]
+            pub(super) fn batch(tracer: &mut Tracer, inp: &ShadeInputs, span: &Span, next: u64) -> u64 {
+                tracer.batch_of_row::<$n>(inp, span, next)
+            }
         }
     };
 }
@@ -229,76 +237,82 @@ impl<'f> Tracer<'f> {
     }
 
     /// The samples of the pixels of `span`: each sample's radiance (0 where not finite) goes to
-    /// `add(pixel offset, radiance)`, every pixel's in sample order.
+    /// `add(pixel offset, radiance)`, every pixel's in sample order. The batches are traced by
+    /// one function per lane width, whatever `add` is: only this loop is compiled per caller.
     pub fn row(&mut self, inp: &ShadeInputs, span: Span, add: &mut impl FnMut(usize, V3<f32>)) {
-        match self.isa {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: the processor has AVX-512 (a tracer is only made for lanes it runs).
-            Isa::Avx512 => unsafe { self.row_avx512(inp, span, add) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above, AVX2.
-            Isa::Avx2 => unsafe { self.row_avx2(inp, span, add) },
-            _ => self.row_n::<4>(inp, span, add),
-        }
-    }
-
-    isa_row!(row_avx512, "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma,bmi1,bmi2,lzcnt,popcnt", 16);
-    isa_row!(row_avx2, "avx2,fma,bmi1,bmi2,lzcnt,popcnt", 8);
-
-    #[inline(always)]
-    fn row_n<const N: usize>(&mut self, inp: &ShadeInputs, span: Span, add: &mut impl FnMut(usize, V3<f32>)) {
-        let Span { y, x0, width, samples } = span;
-        let f = inp.frame;
-        let spp = samples.len() as u32;
-        if spp == 0 {
-            return;
-        }
-        // Pixel-major order: (pixel, sample) pairs, BATCH at a time.
-        let total = width as u64 * spp as u64;
-        let mut next = 0u64;
+        let total = span.width as u64 * span.samples.len() as u64;
+        let mut next = 0;
         while next < total {
-            let t = self.clock();
-            let end = (next + BATCH as u64).min(total);
-            let count = (end - next) as usize;
-            self.slots.clear();
-            // The first pair's pixel and sample; each lane steps on from there.
-            let (mut px, mut s) = ((next / spp as u64) as u32, (next % spp as u64) as u32);
-            for k in (0..count).step_by(N) {
-                let mut x = [0u32; N];
-                let mut smp = [0u32; N];
-                for l in 0..N {
-                    (x[l], smp[l]) = (x0 + px, samples.start + s);
-                    // Lanes past the batch repeat its last pair.
-                    if k + l + 1 < count {
-                        s += 1;
-                        if s == spp {
-                            (px, s) = (px + 1, 0);
-                        }
-                    }
-                }
-                camera::start::<N>(
-                    f,
-                    &mut self.paths,
-                    k,
-                    strahl_core::math::lanes::U(x),
-                    y,
-                    strahl_core::math::lanes::U(smp),
-                    k as u32,
-                );
-                self.slots.extend(x[..N.min(count - k)].iter().map(|&xx| (xx - x0, V3::zero())));
-            }
-            self.paths.len = count;
-            let mut times = self.times;
-            Self::lap(t, &mut times.generate);
-            self.batch::<N>(inp, &mut times);
+            next = match self.isa {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: the processor has AVX-512 (a tracer is only made for lanes it runs).
+                Isa::Avx512 => unsafe { isa_avx512::batch(self, inp, &span, next) },
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: as above, AVX2.
+                Isa::Avx2 => unsafe { isa_avx2::batch(self, inp, &span, next) },
+                _ => isa_4::batch(self, inp, &span, next),
+            };
             let t = self.clock();
             for &(px, c) in &self.slots {
                 add(px as usize, c);
             }
-            Self::lap(t, &mut times.generate);
-            self.times = times;
-            next = end;
+            Self::lap(t, &mut self.times.generate);
         }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+isa_batch!(isa_avx512, 16, "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma,bmi1,bmi2,lzcnt,popcnt");
+#[cfg(target_arch = "x86_64")]
+isa_batch!(isa_avx2, 8, "avx2,fma,bmi1,bmi2,lzcnt,popcnt");
+isa_batch!(isa_4, 4);
+
+impl<'f> Tracer<'f> {
+    /// The batch of `span`'s (pixel, sample) pairs, in pixel-major order, that starts at pair
+    /// `next` (at most [`BATCH`] of them), traced into `self.slots`; returns where the next
+    /// batch starts.
+    #[inline(always)]
+    fn batch_of_row<const N: usize>(&mut self, inp: &ShadeInputs, span: &Span, next: u64) -> u64 {
+        let Span { y, x0, width, ref samples } = *span;
+        let f = inp.frame;
+        let spp = samples.len() as u32;
+        let total = width as u64 * spp as u64;
+        let t = self.clock();
+        let end = (next + BATCH as u64).min(total);
+        let count = (end - next) as usize;
+        self.slots.clear();
+        // The first pair's pixel and sample; each lane steps on from there.
+        let (mut px, mut s) = ((next / spp as u64) as u32, (next % spp as u64) as u32);
+        for k in (0..count).step_by(N) {
+            let mut x = [0u32; N];
+            let mut smp = [0u32; N];
+            for l in 0..N {
+                (x[l], smp[l]) = (x0 + px, samples.start + s);
+                // Lanes past the batch repeat its last pair.
+                if k + l + 1 < count {
+                    s += 1;
+                    if s == spp {
+                        (px, s) = (px + 1, 0);
+                    }
+                }
+            }
+            camera::start::<N>(
+                f,
+                &mut self.paths,
+                k,
+                strahl_core::math::lanes::U(x),
+                y,
+                strahl_core::math::lanes::U(smp),
+                k as u32,
+            );
+            self.slots.extend(x[..N.min(count - k)].iter().map(|&xx| (xx - x0, V3::zero())));
+        }
+        self.paths.len = count;
+        let mut times = self.times;
+        Self::lap(t, &mut times.generate);
+        self.batch::<N>(inp, &mut times);
+        self.times = times;
+        end
     }
 
     #[inline(always)]
