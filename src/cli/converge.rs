@@ -72,6 +72,10 @@ pub struct ConvergeArgs {
     /// Directory for reference.exr, convergence.csv and convergence.png (created if missing).
     #[arg(short, long, value_name = "DIR")]
     pub output: PathBuf,
+    /// Also measure each checkpoint's image denoised (as `strahl render --denoise` would at
+    /// that sample count), its time the samples' plus the guides' and the denoiser's.
+    #[arg(long)]
+    pub denoise: bool,
 }
 
 fn positive_seconds(s: &str) -> Result<f64, String> {
@@ -181,7 +185,7 @@ pub fn run(a: ConvergeArgs) -> Result<()> {
             progress.suspend(|| print_row(r));
             Ok(())
         };
-        strahl::converge::measure(&mut p, &reference, &schedule, &mut on_row)?;
+        strahl::converge::measure(&mut p, &reference, &schedule, a.denoise, &mut on_row)?;
     }
     let png = out.path(PLOT_FILE);
     strahl::converge::plot(&rows, &plot_title(&a.scene, width, height), &png)?;
@@ -336,6 +340,9 @@ impl Progressive for Tracked<'_> {
     }
     fn image(&mut self) -> Result<Image> {
         self.inner.image()
+    }
+    fn denoised(&mut self) -> Result<(Image, f64)> {
+        self.inner.denoised()
     }
 }
 

@@ -4,6 +4,7 @@ mod adapters;
 mod bench;
 mod bench_rays;
 mod converge;
+mod finishing;
 mod merge;
 mod output_image;
 mod progress;

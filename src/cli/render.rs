@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 use strahl_core::image::{ExrPlacement, Region};
 use strahl_core::render::Prepared;
+use strahl_core::render::aov::AovImages;
 use strahl_core::scene::{LoadOptions, RenderMode, Scene};
 use strahl_gpu::select::{Selected, Workload};
 use strahl_gpu::{self as gpu, SceneBuffers};
@@ -21,6 +22,8 @@ pub struct RenderArgs {
     pub output: PathBuf,
     #[command(flatten)]
     pub display: super::output_image::DisplayArgs,
+    #[command(flatten)]
+    pub finish: super::finishing::FinishArgs,
     /// Where to render (default: STRAHL_BACKEND, else auto: a hardware GPU, else the faster
     /// of lavapipe and the cpu for the mode, the cpu without a Vulkan adapter).
     #[arg(long, value_enum)]
@@ -108,6 +111,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     // A missing, read-only or misnamed output fails now, not after the render.
     strahl_core::output::check_file_target(&a.output)?;
     a.display.check(&a.output)?;
+    a.finish.check(&a.output, a.region.is_some() || a.tile.is_some())?;
     if a.camera.is_some() && !strahl_core::scene::gltf::is_gltf_path(&a.scene) {
         return Err(super::usage_error("--camera: only a glTF file (.gltf, .glb) has cameras to choose from"));
     }
@@ -153,6 +157,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         format!("the region {region} ({}x{} of {width}x{height})", region.width(), region.height())
     };
     let progress = Progress::new(samples as u64, "render");
+    let aovs = a.finish.computed();
     let render_on_cpu = || {
         // The CPU's own tree first: the time below is the render's.
         let on_cpu = strahl_cpu::CpuScene::new(&prep);
@@ -174,10 +179,22 @@ pub fn run(a: RenderArgs) -> Result<()> {
         if let Some(line) = report.fallbacks.summary(&prep.scene.materials) {
             println!("{line}");
         }
-        (img, "cpu", format!("cpu ({threads} threads)"))
+        let mut out = Finished { image: img, aovs: None };
+        if !aovs.is_empty() {
+            let start = Instant::now();
+            out.aovs = Some(strahl_cpu::aov::render_aovs(&on_cpu.inputs(&frame), region, &aovs));
+            println!("output variables on the cpu in {:.3} s", start.elapsed().as_secs_f64());
+        }
+        if a.finish.denoise {
+            let guides = out.aovs.as_ref().and_then(|v| v.guides()).expect("the guides were computed");
+            let start = Instant::now();
+            out.image = strahl_core::denoise::denoise(&out.image, &guides);
+            println!("denoised on the cpu in {:.3} s", start.elapsed().as_secs_f64());
+        }
+        (out, "cpu", format!("cpu ({threads} threads)"))
     };
     let (selected, auto) = super::open_backend(a.backend, workload)?;
-    let (image, backend, device) = match selected {
+    let (Finished { image, aovs }, backend, device) = match selected {
         Selected::Cpu => render_on_cpu(),
         Selected::Gpu(ctx) => super::gpu_or_cpu(
             auto,
@@ -206,7 +223,19 @@ pub fn run(a: RenderArgs) -> Result<()> {
                         samples / g.as_secs_f64() / 1e6
                     );
                 }
-                Ok((img, "gpu", ctx.adapter_name()))
+                let mut out = Finished { image: img, aovs: None };
+                if !aovs.is_empty() {
+                    let start = Instant::now();
+                    out.aovs = Some(gpu::aov::render_aovs(&ctx, &buffers, &frame, region, &aovs)?);
+                    println!("output variables on the gpu in {:.3} s", start.elapsed().as_secs_f64());
+                }
+                if a.finish.denoise {
+                    let guides = out.aovs.as_ref().and_then(|v| v.guides()).expect("the guides were computed");
+                    let (image, took) = gpu::denoise::Denoiser::new(&ctx)?.denoise(&ctx, &out.image, &guides)?;
+                    out.image = image;
+                    println!("denoised on the gpu in {:.3} s", took.as_secs_f64());
+                }
+                Ok((out, "gpu", ctx.adapter_name()))
             },
             render_on_cpu,
         )?,
@@ -218,12 +247,26 @@ pub fn run(a: RenderArgs) -> Result<()> {
             region,
             attributes: strahl_core::parts::describe(&description, &prep, &frame),
         };
-        strahl_core::image::write_exr(&a.output, &image, &placement)?;
+        // Only the variables asked for: the denoiser's guides are written when named.
+        let channels: Vec<(&str, Vec<f32>)> = aovs
+            .map(|v| AovImages {
+                layers: v.layers.into_iter().filter(|(x, _)| a.finish.written().contains(x)).collect(),
+                ..v
+            })
+            .map(|v| v.channels())
+            .unwrap_or_default();
+        strahl_core::image::write_exr_with(&a.output, &image, &placement, &channels)?;
     } else {
         a.display.save_png(&image, &a.output)?;
     }
     println!("wrote {}", a.output.display());
     Ok(())
+}
+
+/// The image as written, and the output variables computed beside it.
+struct Finished {
+    image: strahl_core::image::Image,
+    aovs: Option<AovImages>,
 }
 
 /// What preparing the shader cost, as measured: composing it and creating the pipeline, and

@@ -65,14 +65,19 @@ pub fn doubling_checkpoints(max_spp: u32) -> Vec<u32> {
 /// Renders with `p` from zero samples on `schedule`, compares the mean with `reference` at
 /// every checkpoint and calls `on_row` with each row as soon as it is measured (an error from
 /// it stops the run). Times are wall-clock seconds.
+///
+/// With `denoise`, each checkpoint also gives a row of the image denoised
+/// ([`Progressive::denoised`]), labelled `LABEL denoised` (backend `BACKEND+denoise`), whose
+/// time is the samples' plus the guides' and the denoiser's at that checkpoint.
 pub fn measure(
     p: &mut dyn Progressive,
     reference: &Image,
     schedule: &Schedule,
+    denoise: bool,
     on_row: &mut dyn FnMut(&Row) -> Result<()>,
 ) -> Result<Vec<Row>> {
     let start = Instant::now();
-    measure_with_clock(p, reference, schedule, on_row, &|| start.elapsed().as_secs_f64())
+    measure_with_clock(p, reference, schedule, denoise, on_row, &|| start.elapsed().as_secs_f64())
 }
 
 /// [`measure`] with time read from `clock` (seconds from any origin), so that the schedule
@@ -81,6 +86,7 @@ fn measure_with_clock(
     p: &mut dyn Progressive,
     reference: &Image,
     schedule: &Schedule,
+    denoise: bool,
     on_row: &mut dyn FnMut(&Row) -> Result<()>,
     clock: &dyn Fn() -> f64,
 ) -> Result<Vec<Row>> {
@@ -92,7 +98,7 @@ fn measure_with_clock(
             ensure!(max_spp >= 1, "max_spp must be at least 1");
             for c in doubling_checkpoints(max_spp) {
                 let n = c - p.samples();
-                rows.push(step(p, n, &mut seconds, reference, on_row, clock)?);
+                rows.extend(step(p, n, &mut seconds, reference, denoise, on_row, clock)?);
             }
         }
         Schedule::FixedTime { seconds: budget, max_spp } => {
@@ -104,7 +110,7 @@ fn measure_with_clock(
                 if n == 0 {
                     break;
                 }
-                rows.push(step(p, n, &mut seconds, reference, on_row, clock)?);
+                rows.extend(step(p, n, &mut seconds, reference, denoise, on_row, clock)?);
                 if seconds >= budget || p.samples() >= max_spp {
                     break;
                 }
@@ -114,15 +120,17 @@ fn measure_with_clock(
     Ok(rows)
 }
 
-/// Adds `n` samples, adds their time on `clock` to `seconds`, and measures the new mean.
+/// Adds `n` samples, adds their time on `clock` to `seconds`, and measures the new mean (and,
+/// with `denoise`, the mean denoised).
 fn step(
     p: &mut dyn Progressive,
     n: u32,
     seconds: &mut f64,
     reference: &Image,
+    denoise: bool,
     on_row: &mut dyn FnMut(&Row) -> Result<()>,
     clock: &dyn Fn() -> f64,
-) -> Result<Row> {
+) -> Result<Vec<Row>> {
     let backend = p.backend();
     let before = p.samples();
     let start = clock();
@@ -146,7 +154,24 @@ fn step(
         errors,
     };
     on_row(&row)?;
-    Ok(row)
+    let mut rows = vec![row];
+    if denoise {
+        let start = clock();
+        let (image, _) = p.denoised().with_context(|| format!("{backend}: denoising at {spp} spp"))?;
+        let took = clock() - start;
+        let errors =
+            strahl_metrics::errors(reference, &image).with_context(|| format!("{backend} denoised at {spp} spp"))?;
+        let row = Row {
+            backend: format!("{backend}+denoise"),
+            label: format!("{} denoised", rows[0].label),
+            seconds: *seconds + took,
+            errors,
+            ..rows[0].clone()
+        };
+        on_row(&row)?;
+        rows.push(row);
+    }
+    Ok(rows)
 }
 
 /// The next batch of [`Schedule::FixedTime`]: as many samples as are in already (one at
@@ -243,7 +268,7 @@ mod tests {
         for (max_spp, expected) in [(8, vec![1, 2, 4, 8]), (12, vec![1, 2, 4, 8, 12])] {
             let mut p = Noisy::new(&reference, 0.0);
             let mut seen = Vec::new();
-            let rows = measure(&mut p, &reference, &Schedule::Doubling { max_spp }, &mut |r| {
+            let rows = measure(&mut p, &reference, &Schedule::Doubling { max_spp }, false, &mut |r| {
                 seen.push(r.spp);
                 Ok(())
             })
@@ -260,7 +285,7 @@ mod tests {
     fn doubling_error_falls_as_one_over_sqrt_spp() {
         let reference = gradient(32, 32);
         let mut p = Noisy::new(&reference, 0.0);
-        let rows = measure(&mut p, &reference, &Schedule::Doubling { max_spp: 64 }, &mut |_| Ok(())).unwrap();
+        let rows = measure(&mut p, &reference, &Schedule::Doubling { max_spp: 64 }, false, &mut |_| Ok(())).unwrap();
         assert_eq!(rows.len(), 7);
         // Uniform noise of half-width 0.3 has σ = 0.3/√3; 3072 channels estimate it within a few %.
         let sigma = 0.3 / 3f64.sqrt();
@@ -284,7 +309,7 @@ mod tests {
         let mut p = Noisy::new(&reference, cost);
         let clock = p.clock.clone();
         let schedule = Schedule::FixedTime { seconds: budget, max_spp: 1_000_000 };
-        let rows = measure_with_clock(&mut p, &reference, &schedule, &mut |_| Ok(()), &|| clock.get()).unwrap();
+        let rows = measure_with_clock(&mut p, &reference, &schedule, false, &mut |_| Ok(()), &|| clock.get()).unwrap();
         // Batches double the samples while they fit; the last one fills the 18 samples left.
         assert_eq!(rows.iter().map(|r| r.spp).collect::<Vec<_>>(), [1, 2, 4, 8, 16, 32, 50]);
         assert!(rows.iter().all(|r| r.seconds == r.spp as f64 * cost));
@@ -293,7 +318,7 @@ mod tests {
         let mut q = Noisy::new(&reference, cost);
         let clock = q.clock.clone();
         let slow = Schedule::FixedTime { seconds: 40.0 * cost, max_spp: 1_000_000 };
-        let rows = measure_with_clock(&mut q, &reference, &slow, &mut |_| Ok(()), &|| clock.get()).unwrap();
+        let rows = measure_with_clock(&mut q, &reference, &slow, false, &mut |_| Ok(()), &|| clock.get()).unwrap();
         assert_eq!(rows.last().unwrap().spp, 40);
     }
 
@@ -302,7 +327,7 @@ mod tests {
         let reference = gradient(4, 4);
         let mut p = Noisy::new(&reference, 0.0);
         let schedule = Schedule::FixedTime { seconds: 1000.0, max_spp: 10 };
-        let rows = measure(&mut p, &reference, &schedule, &mut |_| Ok(())).unwrap();
+        let rows = measure(&mut p, &reference, &schedule, false, &mut |_| Ok(())).unwrap();
         assert_eq!(rows.iter().map(|r| r.spp).collect::<Vec<_>>(), [1, 2, 4, 8, 10]);
     }
 
@@ -338,7 +363,7 @@ mod tests {
         }
         let reference = gradient(4, 4);
         let mut p = Lazy(Noisy::new(&reference, 0.0));
-        let msg = measure(&mut p, &reference, &Schedule::Doubling { max_spp: 4 }, &mut |_| Ok(())).unwrap_err();
+        let msg = measure(&mut p, &reference, &Schedule::Doubling { max_spp: 4 }, false, &mut |_| Ok(())).unwrap_err();
         assert!(msg.to_string().contains("holds 3 samples per pixel after adding 2 to 2, expected 4"), "{msg}");
     }
 }

@@ -194,9 +194,15 @@ pub struct ExrFile {
 /// with `placement.attributes` as text attributes; atomically. Attribute names and values
 /// must be Latin-1 (other characters are written as `?`).
 pub fn write_exr(path: &Path, img: &Image, placement: &ExrPlacement) -> Result<()> {
+    write_exr_with(path, img, placement, &[])
+}
+
+/// [`write_exr`] with more channels beside R, G and B: `(name, one value a pixel of the
+/// region)`, such as the output variables' (`albedo.R`, `depth.Z`: [`crate::render::aov`]).
+pub fn write_exr_with(path: &Path, img: &Image, placement: &ExrPlacement, extra: &[(&str, Vec<f32>)]) -> Result<()> {
     use exr::prelude::{
-        AttributeValue, Encoding, ImageAttributes, IntegerBounds, Layer, LayerAttributes, SpecificChannels, Vec2,
-        WritableImage,
+        AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, ImageAttributes, IntegerBounds, Layer,
+        LayerAttributes, SpecificChannels, Vec2, WritableImage,
     };
     let r = placement.region;
     ensure!(
@@ -222,8 +228,25 @@ pub fn write_exr(path: &Path, img: &Image, placement: &ExrPlacement) -> Result<(
     for (k, v) in &placement.attributes {
         attributes.other.insert(latin1(k), AttributeValue::Text(latin1(v)));
     }
-    let layer = Layer::new((r.width() as usize, r.height() as usize), attributes, Encoding::SMALL_LOSSLESS, channels);
+    let size = (r.width() as usize, r.height() as usize);
     let display = IntegerBounds::from_dimensions((placement.full.0 as usize, placement.full.1 as usize));
+    if extra.is_empty() {
+        let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, channels);
+        let image = exr::image::Image::new(ImageAttributes::new(display), layer);
+        return crate::output::write_atomic(path, |out| Ok(image.write().to_buffered(out)?));
+    }
+    let n = img.pixels.len();
+    let mut list: Vec<AnyChannel<FlatSamples>> = (0..3)
+        .map(|c| {
+            let values = img.pixels.iter().map(|p| p[c]).collect();
+            AnyChannel::new(["R", "G", "B"][c], FlatSamples::F32(values))
+        })
+        .collect();
+    for (name, values) in extra {
+        ensure!(values.len() == n, "{}: channel {name} has {} values for {n} pixels", path.display(), values.len());
+        list.push(AnyChannel::new(*name, FlatSamples::F32(values.clone())));
+    }
+    let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(list.into()));
     let image = exr::image::Image::new(ImageAttributes::new(display), layer);
     crate::output::write_atomic(path, |out| Ok(image.write().to_buffered(out)?))
 }

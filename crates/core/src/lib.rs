@@ -1,7 +1,8 @@
 //! strahl-core: what both backends share: the scene read from its files, the primitives and
 //! their intersections (f32, the GPU's mirror, and f64, the oracle), the BVH and its GPU
 //! layout, the render stages' formulas (the f32 twins of the shaders), the buffer layouts, and
-//! images, their files and the view transforms that display them.
+//! images, their files, the view transforms that display them and the denoiser (the CPU twin
+//! of the GPU's).
 //!
 //! Data flows one way: scene file → [`scene::Scene`] → [`primitives::Primitives`] →
 //! [`accel::Bvh`] → [`render::Prepared`] → a backend (`strahl-cpu`, or `strahl-gpu` on a
@@ -11,6 +12,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod accel;
+pub mod denoise;
 pub mod display;
 pub mod errors;
 pub mod geometry;
@@ -45,4 +47,9 @@ pub trait Progressive {
     fn samples(&self) -> u32;
     /// The current mean image (reading it back is not timed).
     fn image(&mut self) -> anyhow::Result<crate::image::Image>;
+    /// The current mean image denoised as `strahl render --denoise` would at this sample count
+    /// (the guides of [`render::aov`], then [`denoise`]), with the seconds both took.
+    fn denoised(&mut self) -> anyhow::Result<(crate::image::Image, f64)> {
+        anyhow::bail!("the {} renderer has no denoiser", self.backend())
+    }
 }

@@ -11,6 +11,7 @@ use std::sync::Arc;
 use strahl_core::image::Image;
 use strahl_core::layout::FrameParams;
 use strahl_core::render::Prepared;
+use strahl_core::render::aov::Aov;
 
 /// PathAccumulator path tracing on the CPU: per-pixel sums that grow by whole sample passes, in
 /// the order the GPU's passes add them.
@@ -109,5 +110,16 @@ impl strahl_core::Progressive for PathAccumulator {
     }
     fn image(&mut self) -> anyhow::Result<Image> {
         Ok(PathAccumulator::image(self))
+    }
+    fn denoised(&mut self) -> anyhow::Result<(Image, f64)> {
+        let start = std::time::Instant::now();
+        let image = PathAccumulator::image(self);
+        let frame = FrameParams { spp: self.samples.max(1), ..self.frame };
+        let prep = &self.prep;
+        let inputs = ShadeInputs { prims: &prep.prims, wide: &self.wide, flat: &prep.flat, frame: &frame };
+        let whole = strahl_core::image::Region::whole(frame.width, frame.height);
+        let guides = crate::aov::render_aovs(&inputs, whole, &[Aov::Albedo, Aov::Normal]);
+        let out = strahl_core::denoise::denoise(&image, &guides.guides().expect("both guides were computed"));
+        Ok((out, start.elapsed().as_secs_f64()))
     }
 }

@@ -7,6 +7,7 @@
 //!   `path.wgsl`'s twin, one path at a time; [`lanes`], many paths at a time in SIMD lanes, the
 //!   same image bit for bit), rows spread over rayon's threads;
 //! - [`accumulate`]: progressive path tracing ([`PathAccumulator`]);
+//! - [`aov`]: the output variables besides radiance (`aov.wgsl`'s twin);
 //! - [`trace`]: ray queries in f32 (the GPU's mirror) and f64 (the oracle);
 //! - [`accel`]: the walks only the CPU takes.
 
@@ -15,6 +16,7 @@
 
 pub mod accel;
 pub mod accumulate;
+pub mod aov;
 pub mod lanes;
 pub mod path;
 pub mod render;

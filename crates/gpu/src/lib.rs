@@ -9,7 +9,9 @@
 //! [`GpuContext::read_buffer_async`], [`tiles::render_region_async`],
 //! [`PathAccumulator::image_async`].
 
+pub mod aov;
 mod context;
+pub mod denoise;
 mod error;
 pub mod instance;
 pub mod objects;

@@ -112,7 +112,7 @@ impl GpuContext {
         let (shader, scene_bindings) = self.shader_module(program, key)?;
         let what = format!("the {program:?} shader {entry} for {}", key.label());
         let io_layout = match program {
-            Program::Whitted | Program::Path | Program::View => &self.render_layout,
+            Program::Whitted | Program::Path | Program::View | Program::Aov => &self.render_layout,
             Program::Trace => &self.trace_layout,
             Program::Wavefront => &self.wavefront_layout,
         };

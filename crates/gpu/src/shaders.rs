@@ -45,6 +45,10 @@ pub const MODULES: &[(&str, &str)] = &[
     ("shaders/modules/path.wgsl", include_str!("../shaders/modules/path.wgsl")),
 ];
 
+/// The shaders that import no module and are not composed per scene, only given the shared
+/// values ([`crate::shared::substitute`]): the denoiser's.
+pub const STANDALONE: &[(&str, &str)] = &[("shaders/denoise.wgsl", crate::denoise::DENOISE_WGSL)];
+
 /// A top-level shader and its entry points.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Program {
@@ -59,10 +63,14 @@ pub enum Program {
     /// `view.wgsl`: the viewer's debug images (normals, depth, BVH cost) of primary rays;
     /// composed with `COUNT_VISITS`, which makes the traversal count its work.
     View,
+    /// `aov.wgsl`: the output variables besides radiance (albedo, normal, depth, position,
+    /// object, material), one camera ray per pixel and dispatch.
+    Aov,
 }
 
 impl Program {
-    pub const ALL: [Program; 5] = [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View];
+    pub const ALL: [Program; 6] =
+        [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View, Program::Aov];
 
     pub fn source(self) -> (&'static str, &'static str) {
         match self {
@@ -71,6 +79,7 @@ impl Program {
             Program::Trace => ("shaders/trace.wgsl", include_str!("../shaders/trace.wgsl")),
             Program::Wavefront => ("shaders/wavefront.wgsl", include_str!("../shaders/wavefront.wgsl")),
             Program::View => ("shaders/view.wgsl", include_str!("../shaders/view.wgsl")),
+            Program::Aov => ("shaders/aov.wgsl", include_str!("../shaders/aov.wgsl")),
         }
     }
 }

@@ -51,7 +51,7 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
     use strahl_core::geometry::Part;
     use strahl_core::layout as g;
     use strahl_core::primitives::{PrimKind, PrimRef};
-    use strahl_core::render::{bsdf, limits, microfacet, pbr, sampler, spawn};
+    use strahl_core::render::{aov, bsdf, limits, microfacet, pbr, sampler, spawn};
     use strahl_core::scene::MaterialKind;
     use strahl_core::scene::texture::Wrap;
     let mut values = vec![
@@ -124,6 +124,19 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("PCG_MULT", U32(sampler::PCG_MULT)),
         ("PCG_INC", U32(sampler::PCG_INC)),
         ("F32_MAX", F32(f32::MAX)),
+        // The output variables' passes (render::aov).
+        ("AOV_CHAIN", U32(aov::AOV_CHAIN)),
+        ("AOV_PASS_SHIFT", U32(aov::AOV_PASS_SHIFT)),
+        ("AOV_PASS_ALBEDO", U32(aov::AOV_PASS_ALBEDO)),
+        ("AOV_PASS_FIRST_HIT", U32(aov::AOV_PASS_FIRST_HIT)),
+        ("AOV_PASS_POSITION", U32(aov::AOV_PASS_POSITION)),
+        // The denoiser's parameters (denoise).
+        ("DENOISE_SIGMA_L", F32(strahl_core::denoise::SIGMA_L)),
+        ("DENOISE_SIGMA_N2", F32(strahl_core::denoise::SIGMA_N2)),
+        ("DENOISE_SIGMA_A2", F32(strahl_core::denoise::SIGMA_A2)),
+        ("DENOISE_ALBEDO_EPS", F32(strahl_core::denoise::ALBEDO_EPS)),
+        ("DENOISE_VARIANCE_EPS", F32(strahl_core::denoise::VARIANCE_EPS)),
+        ("DENOISE_WORKGROUP", U32(super::denoise::WORKGROUP)),
         // Workgroup sizes the host dispatches by.
         ("TILE_WORKGROUP", U32(super::tiles::WORKGROUP)),
         ("TRACE_WORKGROUP", U32(super::trace::WORKGROUP as u32)),
@@ -178,7 +191,11 @@ mod tests {
     #[test]
     fn every_placeholder_in_the_shaders_is_a_shared_value_or_a_value_of_the_variant() {
         use crate::split::SplitArray;
-        let sources = crate::shaders::MODULES.iter().copied().chain(crate::Program::ALL.map(|p| p.source()));
+        let sources = crate::shaders::MODULES
+            .iter()
+            .copied()
+            .chain(crate::Program::ALL.map(|p| p.source()))
+            .chain(crate::shaders::STANDALONE.iter().copied());
         let of_variant: Vec<&str> = SplitArray::ALL.iter().map(|a| a.defs().1).collect();
         let directives = ["#define_import_path", "#import", "#ifdef", "#ifndef", "#if", "#else", "#endif"];
         let mut used = std::collections::HashSet::new();

@@ -100,8 +100,22 @@ pub async fn render_tiles_async(
     region: Region,
     progress: &dyn Fn(u64, u64),
 ) -> Result<(Image, RenderStats), GpuError> {
+    render_program_async(ctx, scene, frame, program_for(mode), key, region, progress).await
+}
+
+/// [`render_tiles_async`] with any program of the render programs' bindings (one output
+/// buffer of a vec4 a pixel, three values of which are the image): `frame.spp` passes of
+/// `entry`, sample `frame.sample_base + s` in pass s, their sum divided by `frame.spp`.
+pub async fn render_program_async(
+    ctx: &GpuContext,
+    scene: &SceneBuffers,
+    frame: &FrameParams,
+    (program, entry): (Program, &'static str),
+    key: FeatureKey,
+    region: Region,
+    progress: &dyn Fn(u64, u64),
+) -> Result<(Image, RenderStats), GpuError> {
     assert!(region.fits(frame.width, frame.height), "region {region} of a {}x{} image", frame.width, frame.height);
-    let (program, entry) = program_for(mode);
     let was_cached = ctx.cached_pipeline(program, key, entry).is_some();
     let pipe = ctx.pipeline(program, key, entry)?;
     let start = Instant::now();
@@ -191,6 +205,10 @@ pub struct PathAccumulator {
     frame: FrameParams,
     kernels: AccumulatorKernels,
     samples: u32,
+    /// The scene, for the denoiser's guides (`Progressive::denoised`).
+    scene: SceneBuffers,
+    /// The denoiser's pipelines, built at the first denoised image.
+    denoiser: Option<crate::denoise::Denoiser>,
 }
 
 enum AccumulatorKernels {
@@ -217,6 +235,7 @@ impl PathAccumulator {
     ) -> Result<Self, GpuError> {
         let bytes = frame.width as u64 * frame.height as u64 * PIXEL_BYTES;
         ctx.check_binding_size(&format!("the {}x{} accumulation buffer", frame.width, frame.height), bytes)?;
+        let kept = scene.clone();
         let kernels = match kernels {
             PathKernels::Wavefront => {
                 let key = scene.key;
@@ -237,7 +256,7 @@ impl PathAccumulator {
                 AccumulatorKernels::Megakernel { scene, pipeline, output, out_group }
             }
         };
-        Ok(Self { ctx, frame, kernels, samples: 0 })
+        Ok(Self { ctx, frame, kernels, samples: 0, scene: kept, denoiser: None })
     }
 
     pub fn context(&self) -> &GpuContext {
@@ -328,6 +347,20 @@ impl strahl_core::Progressive for PathAccumulator {
     }
     fn image(&mut self) -> anyhow::Result<Image> {
         Ok(PathAccumulator::image(self)?)
+    }
+    fn denoised(&mut self) -> anyhow::Result<(Image, f64)> {
+        let start = Instant::now();
+        let image = PathAccumulator::image(self)?;
+        let frame = FrameParams { spp: self.samples.max(1), ..self.frame };
+        let whole = Region::whole(frame.width, frame.height);
+        let aovs = [strahl_core::render::aov::Aov::Albedo, strahl_core::render::aov::Aov::Normal];
+        let guides = crate::aov::render_aovs(&self.ctx, &self.scene, &frame, whole, &aovs)?;
+        if self.denoiser.is_none() {
+            self.denoiser = Some(crate::denoise::Denoiser::new(&self.ctx)?);
+        }
+        let denoiser = self.denoiser.as_ref().expect("built above");
+        let (out, _) = denoiser.denoise(&self.ctx, &image, &guides.guides().expect("both guides were computed"))?;
+        Ok((out, start.elapsed().as_secs_f64()))
     }
 }
 

@@ -2,11 +2,12 @@
 //! (`camera.wgsl`), [`spawn`] (`spawn.wgsl`), [`surface`] (`surface.wgsl`), [`texture`]
 //! (`texture.wgsl`), [`environment`] (`environment.wgsl`), and for path tracing [`sampler`]
 //! (`sampler.wgsl`), [`bsdf`] (`bsdf.wgsl`), [`microfacet`] and [`pbr`], [`emitters`]
-//! (`emitters.wgsl`); [`limits`] holds the depths and reaches the tracers share, [`flatten`]
+//! (`emitters.wgsl`), and the output variables besides radiance [`aov`] (`aov.wgsl`); [`limits`] holds the depths and reaches the tracers share, [`flatten`]
 //! the scene made into the buffers both read. The CPU backend (`strahl-cpu`) runs these
 //! functions in its tracers (`shade.rs`, `path.rs`, and lane by lane `lanes/`); the GPU runs
 //! their WGSL twins.
 
+pub mod aov;
 pub mod bsdf;
 pub mod camera;
 pub mod emitters;

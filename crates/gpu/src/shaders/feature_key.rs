@@ -85,6 +85,8 @@ impl FeatureKey {
     /// path) read.
     pub const ASSETS: FeatureKey =
         Self::TEXTURES.union(Self::ENVIRONMENT).union(Self::ENV_MAP).union(Self::PBR).union(Self::ALPHA);
+    /// The materials that bend a ray without scattering it (the AOV program follows them).
+    pub const SPECULAR: FeatureKey = Self::MIRROR.union(Self::DIELECTRIC);
     /// Every scene feature: the one shader that renders any scene.
     pub const ALL: FeatureKey = Self::all().difference(Self::DEVICE);
 
@@ -159,11 +161,13 @@ impl FeatureKey {
         .collect()
     }
 
-    /// The key as the program sees it: the trace and view programs ignore shading flags.
+    /// The key as the program sees it: the trace and view programs ignore shading flags, the
+    /// AOV program the lights'.
     pub fn for_program(self, p: Program) -> FeatureKey {
         match p {
             Program::Whitted | Program::Path | Program::Wavefront => self,
             Program::Trace | Program::View => self & Self::GEOMETRY,
+            Program::Aov => self & Self::GEOMETRY.union(Self::SPECULAR).union(Self::PBR).union(Self::ASSETS),
         }
     }
 

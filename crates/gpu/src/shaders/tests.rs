@@ -300,10 +300,15 @@ fn shared_constants_reach_the_composed_shaders_exactly() {
     use crate::shared::{Shared, constants};
     let shared: HashMap<&str, Shared> = constants().into_iter().collect();
     let mut seen = std::collections::HashSet::new();
-    for p in Program::ALL {
-        // Without a BVH for the counts of the brute-force loops.
-        for key in [FeatureKey::ALL, FeatureKey::ALL | FeatureKey::LOAD64, FeatureKey::ALL - FeatureKey::BVH] {
-            let m = compose(p, key).unwrap();
+    // Without a BVH for the counts of the brute-force loops; and the standalone shaders.
+    let keys = [FeatureKey::ALL, FeatureKey::ALL | FeatureKey::LOAD64, FeatureKey::ALL - FeatureKey::BVH];
+    let mut modules: Vec<(String, naga::Module)> =
+        Program::ALL.into_iter().flat_map(|p| keys.map(|key| (format!("{p:?}"), compose(p, key).unwrap()))).collect();
+    for (file, src) in super::STANDALONE {
+        modules.push((file.to_string(), naga::front::wgsl::parse_str(&crate::shared::substitute(src)).unwrap()));
+    }
+    {
+        for (p, m) in &modules {
             for (_, c) in m.constants.iter() {
                 let Some(name) = c.name.as_deref().and_then(|n| n.split("X_naga_oil_mod_X").next()) else {
                     continue;
@@ -319,12 +324,12 @@ fn shared_constants_reach_the_composed_shaders_exactly() {
                         let found: Vec<Shared> =
                             components.iter().map(|&h| literal(&m.global_expressions[h])).collect();
                         let wanted: Vec<Shared> = values.iter().map(|&v| Shared::F32(v)).collect();
-                        assert_eq!(found, wanted, "the table {name} in the {p:?} shader");
+                        assert_eq!(found, wanted, "the table {name} in the {p} shader");
                         want
                     }
                     (e, _) => literal(e),
                 };
-                assert_eq!(got, want, "{name} in the {p:?} shader");
+                assert_eq!(got, want, "{name} in the {p} shader");
                 seen.insert(name.to_string());
             }
         }
@@ -683,3 +688,37 @@ fn every_pipeline_fits_the_storage_buffers_webgpu_guarantees() {
 }
 
 mod tint;
+
+/// The standalone shaders (the denoiser's) parse, validate with every check naga has, and
+/// translate to SPIR-V, GLSL ES 3.10, MSL and HLSL without error.
+#[test]
+fn standalone_shaders_validate_and_translate() {
+    use naga::back::{glsl, hlsl, msl, spv};
+    for (file, src) in super::STANDALONE {
+        let m = naga::front::wgsl::parse_str(&crate::shared::substitute(src)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
+            .validate(&m)
+            .unwrap_or_else(|e| panic!("{file}: {:?}", e.into_inner()));
+        spv::write_vec(&m, &info, &spv::Options::default(), None).unwrap_or_else(|e| panic!("{file}: SPIR-V: {e}"));
+        for ep in &m.entry_points {
+            let options = glsl::Options { version: glsl::Version::new_gles(310), ..Default::default() };
+            let pipeline = glsl::PipelineOptions {
+                shader_stage: naga::ShaderStage::Compute,
+                entry_point: ep.name.clone(),
+                multiview: None,
+            };
+            let mut text = String::new();
+            glsl::Writer::new(&mut text, &m, &info, &options, &pipeline, Default::default())
+                .and_then(|mut w| w.write())
+                .unwrap_or_else(|e| panic!("{file} {}: GLSL: {e}", ep.name));
+        }
+        let msl_options = msl::Options { lang_version: (2, 4), ..Default::default() };
+        msl::write_string(&m, &info, &msl_options, &msl::PipelineOptions::default())
+            .unwrap_or_else(|e| panic!("{file}: MSL: {e}"));
+        let mut text = String::new();
+        hlsl::Writer::new(&mut text, &hlsl::Options::default(), &hlsl::PipelineOptions::default())
+            .write(&m, &info, None)
+            .unwrap_or_else(|e| panic!("{file}: HLSL: {e}"));
+        assert_eq!(m.entry_points.len(), 3, "{file}: prepare, atrous, finish");
+    }
+}
