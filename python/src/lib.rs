@@ -290,7 +290,7 @@ impl PyScene {
 
     /// Renders the scene: (flat float32 pixels, where it rendered).
     #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (mode, spp, width, height, max_depth, seed, device, camera))]
+    #[pyo3(signature = (mode, spp, width, height, max_depth, seed, device, camera, denoise = false))]
     fn render<'py>(
         &self,
         py: Python<'py>,
@@ -302,6 +302,7 @@ impl PyScene {
         seed: u32,
         device: &str,
         camera: Option<render::CameraArgs>,
+        denoise: bool,
     ) -> PyResult<(Bound<'py, numpy::PyArray1<f32>>, String, u32, u32)> {
         let camera = camera.map(|(e, l, u, f)| render::camera(e, l, u, f)).transpose()?;
         let scene = lock(&self.contents).for_render(camera);
@@ -313,6 +314,7 @@ impl PyScene {
             max_depth,
             seed,
             device: device::parse_choice(device, "device")?,
+            denoise,
         };
         req.check()?;
         let (pixels, on) = py.detach(|| req.run(scene))?;

@@ -5,6 +5,7 @@ use crate::device::{self, gpu_error};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use strahl_core::render::Prepared;
+use strahl_core::render::aov::Aov;
 use strahl_core::scene::{Camera, RenderMode, Scene};
 use strahl_gpu::select::Workload;
 
@@ -19,6 +20,8 @@ pub struct Request {
     pub max_depth: Option<u32>,
     pub seed: u32,
     pub device: strahl_gpu::select::Choice,
+    /// Denoise the image on the backend that rendered it, as `strahl render --denoise` does.
+    pub denoise: bool,
 }
 
 pub fn parse_mode(mode: &str) -> PyResult<RenderMode> {
@@ -90,12 +93,30 @@ impl Request {
         let mut frame = prep.frame(self.width, self.height);
         frame.seed = self.seed;
         let (ctx, note) = device::open(self.device, workload).map_err(gpu_error)?;
-        let on_cpu = || strahl_cpu::render(&strahl_cpu::CpuScene::new(&prep), &frame, self.mode, &|_| ());
+        let whole = strahl_core::image::Region::whole(frame.width, frame.height);
+        let guides = [Aov::Albedo, Aov::Normal];
+        let on_cpu = || {
+            let cpu = strahl_cpu::CpuScene::new(&prep);
+            let image = strahl_cpu::render(&cpu, &frame, self.mode, &|_| ());
+            if !self.denoise {
+                return image;
+            }
+            let aovs = strahl_cpu::aov::render_aovs(&cpu.inputs(&frame), whole, &guides);
+            strahl_core::denoise::denoise(&image, &aovs.guides().expect("both guides were computed"))
+        };
         let (image, on) = match ctx {
             None => (on_cpu(), note.unwrap_or_else(|| "cpu".into())),
             Some(ctx) => {
                 let gpu = strahl_gpu::SceneBuffers::upload(&ctx, &prep.flat).and_then(|buffers| {
-                    strahl_gpu::tiles::render(&ctx, &buffers, &frame, self.mode, buffers.key, &|_, _| ())
+                    let (image, _) =
+                        strahl_gpu::tiles::render(&ctx, &buffers, &frame, self.mode, buffers.key, &|_, _| ())?;
+                    if !self.denoise {
+                        return Ok((image, ()));
+                    }
+                    let aovs = strahl_gpu::aov::render_aovs(&ctx, &buffers, &frame, whole, &guides)?;
+                    let g = aovs.guides().expect("both guides were computed");
+                    let (image, _) = strahl_gpu::denoise::Denoiser::new(&ctx)?.denoise(&ctx, &image, &g)?;
+                    Ok((image, ()))
                 });
                 match gpu {
                     Ok((image, _)) => (image, format!("gpu ({})", ctx.adapter_name())),

@@ -347,6 +347,7 @@ def render(
     up: Sequence[float] = (0.0, 1.0, 0.0),
     fov_y: float = 40.0,
     info: bool = False,
+    denoise: bool = False,
 ) -> Any:
     """Renders ``scene``: an (height, width, 3) float32 image of linear radiance, row 0 at
     the top, as ``strahl render`` makes it. ``mode``: ``"whitted"`` or ``"path"``;
@@ -355,13 +356,18 @@ def render(
     light, and seen from strahl's default viewpoint over its bounds, unless ``eye`` and
     ``look_at`` (with ``up`` and ``fov_y``, the vertical field of view in degrees) are given.
     With ``info=True`` it returns ``(image, where)``, ``where`` naming the backend that
-    rendered it (and, where ``auto`` chose, why)."""
-    pixels, where, w, h = _render(scene, mode, spp, width, height, backend, max_depth, seed, eye, look_at, up, fov_y)
+    rendered it (and, where ``auto`` chose, why). With ``denoise=True`` the image is denoised
+    on that backend, as ``strahl render --denoise`` does."""
+    if not isinstance(denoise, bool):
+        raise ValueError(f"denoise={denoise!r}: must be True or False")
+    pixels, where, w, h = _render(
+        scene, mode, spp, width, height, backend, max_depth, seed, eye, look_at, up, fov_y, denoise
+    )
     image = pixels.reshape(h, w, 3)
     return (image, where) if info else image
 
 
-def _render(scene, mode, spp, width, height, backend, max_depth, seed, eye, look_at, up, fov_y):
+def _render(scene, mode, spp, width, height, backend, max_depth, seed, eye, look_at, up, fov_y, denoise=False):
     if not isinstance(scene, RaycastingScene):
         raise ValueError(f"render: expected a strahl.RaycastingScene, got {type(scene).__name__}")
     for name, v in (("spp", spp), ("seed", seed)):
@@ -372,4 +378,4 @@ def _render(scene, mode, spp, width, height, backend, max_depth, seed, eye, look
         raise ValueError("render: give eye and look_at together")
     if eye is not None:
         camera = (tuple(map(float, eye)), tuple(map(float, look_at)), tuple(map(float, up)), float(fov_y))
-    return scene._scene.render(mode, int(spp), width, height, max_depth, int(seed), backend, camera)
+    return scene._scene.render(mode, int(spp), width, height, max_depth, int(seed), backend, camera, denoise)

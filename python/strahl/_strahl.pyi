@@ -44,4 +44,5 @@ class Scene:
         seed: int,
         device: str,
         camera: Optional[_Camera],
+        denoise: bool,
     ) -> Tuple[npt.NDArray[np.float32], str, int, int]: ...

@@ -108,3 +108,23 @@ def test_a_built_scene_renders_with_a_camera():
         strahl.render(scene, width=0)
     with pytest.raises(ValueError, match=r"give eye and look_at together"):
         strahl.render(scene, eye=(0, 1, 0))
+
+
+def test_denoise_brings_a_noisy_render_nearer_many_samples(repo):
+    scene = strahl.RaycastingScene.from_file(repo / "assets" / "scenes" / "seed.toml")
+    size = dict(mode="path", width=80, height=60)
+    reference = strahl.render(scene, spp=256, backend="cpu", **size)
+    raw = strahl.render(scene, spp=4, backend="cpu", **size)
+    denoised = strahl.render(scene, spp=4, backend="cpu", denoise=True, **size)
+
+    def error(image):
+        return np.sqrt(np.mean((np.clip(image, 0, 1) - np.clip(reference, 0, 1)) ** 2))
+
+    assert error(denoised) < error(raw) / 1.5, (error(denoised), error(raw))
+    # The GPU denoises the GPU's image as the CPU does the CPU's (to rounding).
+    gpu, where = strahl.render(scene, spp=4, backend="gpu", denoise=True, info=True, **size)
+    assert where.startswith("gpu"), where
+    diff = np.abs(srgb8(gpu).astype(int) - srgb8(denoised).astype(int)).max(axis=-1)
+    assert (diff <= 2).mean() >= 0.98, (diff <= 2).mean()
+    with pytest.raises(ValueError, match=r"denoise='yes'"):
+        strahl.render(scene, denoise="yes")
