@@ -1,15 +1,18 @@
 //! `strahl render`.
 
 use super::BackendChoice;
+use super::finishing::FinishArgs;
 use super::progress::Progress;
 use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
 use std::time::Instant;
-use strahl_core::image::{ExrPlacement, Region};
+use strahl_core::image::{ExrPlacement, Image, Region};
+use strahl_core::layout::FrameParams;
 use strahl_core::render::Prepared;
 use strahl_core::render::aov::AovImages;
 use strahl_core::scene::{LoadOptions, RenderMode, Scene};
+use strahl_cpu::shade::ShadeInputs;
 use strahl_gpu::select::{Selected, Workload};
 use strahl_gpu::{self as gpu, SceneBuffers};
 
@@ -157,7 +160,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
         format!("the region {region} ({}x{} of {width}x{height})", region.width(), region.height())
     };
     let progress = Progress::new(samples as u64, "render");
-    let aovs = a.finish.computed();
     let render_on_cpu = || {
         // The CPU's own tree first: the time below is the render's.
         let on_cpu = strahl_cpu::CpuScene::new(&prep);
@@ -179,19 +181,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         if let Some(line) = report.fallbacks.summary(&prep.scene.materials) {
             println!("{line}");
         }
-        let mut out = Finished { image: img, aovs: None };
-        if !aovs.is_empty() {
-            let start = Instant::now();
-            out.aovs = Some(strahl_cpu::aov::render_aovs(&on_cpu.inputs(&frame), region, &aovs));
-            println!("output variables on the cpu in {:.3} s", start.elapsed().as_secs_f64());
-        }
-        if a.finish.denoise {
-            let guides = out.aovs.as_ref().and_then(|v| v.guides()).expect("the guides were computed");
-            let start = Instant::now();
-            out.image = strahl_core::denoise::denoise(&out.image, &guides);
-            println!("denoised on the cpu in {:.3} s", start.elapsed().as_secs_f64());
-        }
-        (out, "cpu", format!("cpu ({threads} threads)"))
+        (finish_on_cpu(&a.finish, &on_cpu.inputs(&frame), region, img), "cpu", format!("cpu ({threads} threads)"))
     };
     let (selected, auto) = super::open_backend(a.backend, workload)?;
     let (Finished { image, aovs }, backend, device) = match selected {
@@ -223,18 +213,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
                         samples / g.as_secs_f64() / 1e6
                     );
                 }
-                let mut out = Finished { image: img, aovs: None };
-                if !aovs.is_empty() {
-                    let start = Instant::now();
-                    out.aovs = Some(gpu::aov::render_aovs(&ctx, &buffers, &frame, region, &aovs)?);
-                    println!("output variables on the gpu in {:.3} s", start.elapsed().as_secs_f64());
-                }
-                if a.finish.denoise {
-                    let guides = out.aovs.as_ref().and_then(|v| v.guides()).expect("the guides were computed");
-                    let (image, took) = gpu::denoise::Denoiser::new(&ctx)?.denoise(&ctx, &out.image, &guides)?;
-                    out.image = image;
-                    println!("denoised on the gpu in {:.3} s", took.as_secs_f64());
-                }
+                let out = finish_on_gpu(&a.finish, (&ctx, &buffers, &frame), region, img)?;
                 Ok((out, "gpu", ctx.adapter_name()))
             },
             render_on_cpu,
@@ -265,8 +244,49 @@ pub fn run(a: RenderArgs) -> Result<()> {
 
 /// The image as written, and the output variables computed beside it.
 struct Finished {
-    image: strahl_core::image::Image,
+    image: Image,
     aovs: Option<AovImages>,
+}
+
+/// The output variables `finish` asks for and the image denoised where it asks, on the CPU.
+fn finish_on_cpu(finish: &FinishArgs, inputs: &ShadeInputs, region: Region, image: Image) -> Finished {
+    let mut out = Finished { image, aovs: None };
+    let aovs = finish.computed();
+    if !aovs.is_empty() {
+        let start = Instant::now();
+        out.aovs = Some(strahl_cpu::aov::render_aovs(inputs, region, &aovs));
+        println!("output variables on the cpu in {:.3} s", start.elapsed().as_secs_f64());
+    }
+    if finish.denoise {
+        let guides = out.aovs.as_ref().and_then(|v| v.guides()).expect("the guides were computed");
+        let start = Instant::now();
+        out.image = strahl_core::denoise::denoise(&out.image, &guides);
+        println!("denoised on the cpu in {:.3} s", start.elapsed().as_secs_f64());
+    }
+    out
+}
+
+/// [`finish_on_cpu`] on the GPU that rendered `frame` of the scene in `buffers`.
+fn finish_on_gpu(
+    finish: &FinishArgs,
+    (ctx, buffers, frame): (&gpu::GpuContext, &SceneBuffers, &FrameParams),
+    region: Region,
+    image: Image,
+) -> Result<Finished> {
+    let mut out = Finished { image, aovs: None };
+    let aovs = finish.computed();
+    if !aovs.is_empty() {
+        let start = Instant::now();
+        out.aovs = Some(gpu::aov::render_aovs(ctx, buffers, frame, region, &aovs)?);
+        println!("output variables on the gpu in {:.3} s", start.elapsed().as_secs_f64());
+    }
+    if finish.denoise {
+        let guides = out.aovs.as_ref().and_then(|v| v.guides()).expect("the guides were computed");
+        let (image, took) = gpu::denoise::Denoiser::new(ctx)?.denoise(ctx, &out.image, &guides)?;
+        out.image = image;
+        println!("denoised on the gpu in {:.3} s", took.as_secs_f64());
+    }
+    Ok(out)
 }
 
 /// What preparing the shader cost, as measured: composing it and creating the pipeline, and

@@ -8,11 +8,8 @@ use strahl_core::denoise::{Guides, ITERATIONS};
 use strahl_core::image::Image;
 use web_time::Instant;
 
-/// Side of a workgroup in invocations (`DENOISE_WORKGROUP`).
-pub const WORKGROUP: u32 = 8;
-
-/// The denoiser's shader (standalone WGSL, before the shared values are substituted).
-pub const DENOISE_WGSL: &str = include_str!("../shaders/denoise.wgsl");
+use crate::shaders::DENOISE_WGSL;
+use crate::shared::DENOISE_WORKGROUP as WORKGROUP;
 
 /// The denoiser's pipelines on one device: build once, denoise as often as needed.
 pub struct Denoiser {

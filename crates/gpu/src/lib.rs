@@ -16,6 +16,7 @@ mod error;
 pub mod instance;
 pub mod objects;
 mod pipelines;
+mod progressive;
 mod readback;
 mod scene_buffers;
 pub mod select;

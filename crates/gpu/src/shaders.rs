@@ -47,7 +47,10 @@ pub const MODULES: &[(&str, &str)] = &[
 
 /// The shaders that import no module and are not composed per scene, only given the shared
 /// values ([`crate::shared::substitute`]): the denoiser's.
-pub const STANDALONE: &[(&str, &str)] = &[("shaders/denoise.wgsl", crate::denoise::DENOISE_WGSL)];
+pub const STANDALONE: &[(&str, &str)] = &[("shaders/denoise.wgsl", DENOISE_WGSL)];
+
+/// The denoiser's shader (`crate::denoise`), before the shared values are substituted.
+pub const DENOISE_WGSL: &str = include_str!("../shaders/denoise.wgsl");
 
 /// A top-level shader and its entry points.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -44,6 +44,9 @@ pub(crate) fn hex_float(v: f32) -> String {
     }
 }
 
+/// Side of the denoiser's workgroups in invocations (`crate::denoise`).
+pub const DENOISE_WORKGROUP: u32 = 8;
+
 /// Every shared value, by the name the shaders use.
 pub fn constants() -> Vec<(&'static str, Shared)> {
     use Shared::{F32, F32s, U32};
@@ -136,7 +139,7 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("DENOISE_SIGMA_A2", F32(strahl_core::denoise::SIGMA_A2)),
         ("DENOISE_ALBEDO_EPS", F32(strahl_core::denoise::ALBEDO_EPS)),
         ("DENOISE_VARIANCE_EPS", F32(strahl_core::denoise::VARIANCE_EPS)),
-        ("DENOISE_WORKGROUP", U32(super::denoise::WORKGROUP)),
+        ("DENOISE_WORKGROUP", U32(DENOISE_WORKGROUP)),
         // Workgroup sizes the host dispatches by.
         ("TILE_WORKGROUP", U32(super::tiles::WORKGROUP)),
         ("TRACE_WORKGROUP", U32(super::trace::WORKGROUP as u32)),

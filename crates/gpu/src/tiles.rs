@@ -205,10 +205,8 @@ pub struct PathAccumulator {
     frame: FrameParams,
     kernels: AccumulatorKernels,
     samples: u32,
-    /// The scene, for the denoiser's guides (`Progressive::denoised`).
+    /// The scene, for the denoiser's guides (`Progressive::denoised`, `progressive.rs`).
     scene: SceneBuffers,
-    /// The denoiser's pipelines, built at the first denoised image.
-    denoiser: Option<crate::denoise::Denoiser>,
 }
 
 enum AccumulatorKernels {
@@ -256,7 +254,17 @@ impl PathAccumulator {
                 AccumulatorKernels::Megakernel { scene, pipeline, output, out_group }
             }
         };
-        Ok(Self { ctx, frame, kernels, samples: 0, scene: kept, denoiser: None })
+        Ok(Self { ctx, frame, kernels, samples: 0, scene: kept })
+    }
+
+    /// The scene it renders.
+    pub fn scene(&self) -> &SceneBuffers {
+        &self.scene
+    }
+
+    /// The frame it renders (one sample a pixel per pass).
+    pub fn frame(&self) -> &FrameParams {
+        &self.frame
     }
 
     pub fn context(&self) -> &GpuContext {
@@ -328,39 +336,6 @@ impl PathAccumulator {
             }
             Ok(img)
         }
-    }
-}
-
-/// The GPU backend's progressive path tracer.
-impl strahl_core::Progressive for PathAccumulator {
-    fn label(&self) -> String {
-        format!("gpu ({})", self.context().adapter_info.name)
-    }
-    fn backend(&self) -> &'static str {
-        "gpu"
-    }
-    fn add_samples(&mut self, n: u32) -> anyhow::Result<()> {
-        Ok(PathAccumulator::add_samples(self, n)?)
-    }
-    fn samples(&self) -> u32 {
-        PathAccumulator::samples(self)
-    }
-    fn image(&mut self) -> anyhow::Result<Image> {
-        Ok(PathAccumulator::image(self)?)
-    }
-    fn denoised(&mut self) -> anyhow::Result<(Image, f64)> {
-        let start = Instant::now();
-        let image = PathAccumulator::image(self)?;
-        let frame = FrameParams { spp: self.samples.max(1), ..self.frame };
-        let whole = Region::whole(frame.width, frame.height);
-        let aovs = [strahl_core::render::aov::Aov::Albedo, strahl_core::render::aov::Aov::Normal];
-        let guides = crate::aov::render_aovs(&self.ctx, &self.scene, &frame, whole, &aovs)?;
-        if self.denoiser.is_none() {
-            self.denoiser = Some(crate::denoise::Denoiser::new(&self.ctx)?);
-        }
-        let denoiser = self.denoiser.as_ref().expect("built above");
-        let (out, _) = denoiser.denoise(&self.ctx, &image, &guides.guides().expect("both guides were computed"))?;
-        Ok((out, start.elapsed().as_secs_f64()))
     }
 }
 
