@@ -58,7 +58,7 @@ fn background(d: vec3<f32>) -> vec3<f32> {
 #endif
 }
 
-// render::aov::value.
+// render::aov::guides (the albedo and normal passes) and render::aov::first_hit (the others).
 fn aov_value(pass_id: u32, origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     var miss = vec3<f32>(0.0);
     if pass_id == AOV_PASS_FIRST_HIT {

@@ -152,24 +152,9 @@ fn onward(ray: &Ray<f32>, hit: &Hit<f32>, dir: V3<f32>) -> Ray<f32> {
     Ray::new(spawn_origin(ray, hit.t, side), dir)
 }
 
-/// The value of pass `pass` for the camera ray `ray`, with `nearest` the scene's nearest-hit
-/// walk (the CPU backend's): three values, as `aov.wgsl`'s `aov_value`.
-pub fn value(
-    g: &FlatScene,
-    f: &FrameParams,
-    pass: u32,
-    ray: Ray<f32>,
-    nearest: impl Fn(&Ray<f32>) -> Option<Hit<f32>>,
-) -> [f32; 3] {
-    match pass {
-        AOV_PASS_ALBEDO => guides(g, f, ray, nearest).0,
-        AOV_PASS_NORMAL => guides(g, f, ray, nearest).1,
-        _ => first_hit(g, pass, ray, nearest),
-    }
-}
-
 /// The albedo and the normal the guide passes record for `ray` (the two passes' values,
-/// found by one walk).
+/// found by one walk; `aov.wgsl`'s `aov_value` for those passes), with `nearest` the scene's
+/// nearest-hit walk (the CPU backend's).
 pub fn guides(
     g: &FlatScene,
     f: &FrameParams,
@@ -206,7 +191,7 @@ pub fn guides(
 }
 
 /// The value of a first-hit pass ([`AOV_PASS_FIRST_HIT`]: depth, object, material;
-/// [`AOV_PASS_POSITION`]: the point) for `ray`.
+/// [`AOV_PASS_POSITION`]: the point) for `ray` (`aov_value` for those passes).
 pub fn first_hit(g: &FlatScene, pass: u32, ray: Ray<f32>, nearest: impl Fn(&Ray<f32>) -> Option<Hit<f32>>) -> [f32; 3] {
     let mut ray = ray;
     // The distance travelled before this ray, for the depth past cut-outs.
