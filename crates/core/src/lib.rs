@@ -23,6 +23,7 @@ pub mod math;
 pub mod output;
 pub mod parts;
 pub mod primitives;
+pub mod proximity;
 pub mod query;
 pub mod raysets;
 pub mod render;

@@ -29,3 +29,41 @@ pub fn png(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
     img.write_to(&mut out, image::ImageFormat::Png).unwrap();
     out.into_inner()
 }
+
+/// A torus about the z axis (ring radius `big`, tube radius `small`), `nu` quads around the
+/// ring by `nv` around the tube, each cut into two triangles that face outward: its vertices
+/// and faces.
+pub fn torus_mesh(big: f64, small: f64, nu: usize, nv: usize) -> (Vec<crate::math::V3<f64>>, Vec<[usize; 3]>) {
+    use std::f64::consts::TAU;
+    let mut vertices = Vec::with_capacity(nu * nv);
+    for i in 0..nu {
+        let u = TAU * i as f64 / nu as f64;
+        for j in 0..nv {
+            let v = TAU * j as f64 / nv as f64;
+            let rho = big + small * v.cos();
+            vertices.push(crate::math::V3::new(rho * u.cos(), rho * u.sin(), small * v.sin()));
+        }
+    }
+    let at = |i: usize, j: usize| (i % nu) * nv + j % nv;
+    let mut faces = Vec::with_capacity(2 * nu * nv);
+    for i in 0..nu {
+        for j in 0..nv {
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            faces.push([a, b, c]);
+            faces.push([a, c, d]);
+        }
+    }
+    (vertices, faces)
+}
+
+/// [`torus_mesh`] as the primitives of one scene object.
+pub fn torus_triangles(big: f64, small: f64, nu: usize, nv: usize) -> crate::primitives::Primitives<f64> {
+    use crate::primitives::{Primitives, Tag, Tagged};
+    let (v, faces) = torus_mesh(big, small, nu, nv);
+    let mut p = Primitives::default();
+    for (k, f) in faces.iter().enumerate() {
+        let tag = Tag { object: 0, face: k as u32, material: 0 };
+        p.triangles.push(Tagged { shape: crate::geometry::Triangle { v: f.map(|i| v[i]) }, tag });
+    }
+    p
+}

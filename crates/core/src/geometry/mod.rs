@@ -6,6 +6,7 @@
 //! it lies on. The normal is computed afterwards, once, for the hit that is kept: nearest-hit
 //! traversal only needs the `t`s.
 
+pub mod closest;
 pub mod cylinder;
 pub mod plane;
 pub mod sphere;

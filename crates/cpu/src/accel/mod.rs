@@ -15,6 +15,7 @@ mod record;
 pub mod simd;
 pub mod wide;
 pub mod wide_all;
+pub mod wide_closest;
 pub mod wide_traverse;
 
 pub use wide::WideBvh;
