@@ -47,6 +47,8 @@ pub struct GpuContext {
     pub(crate) scene_layouts: Mutex<HashMap<SceneBindings, wgpu::BindGroupLayout>>,
     pub(crate) render_layout: wgpu::BindGroupLayout,
     pub(crate) trace_layout: wgpu::BindGroupLayout,
+    /// Group 1 of the closest-point program: its points (read) and answers.
+    pub(crate) closest_layout: wgpu::BindGroupLayout,
     pub(crate) wavefront_layout: wgpu::BindGroupLayout,
     pub(crate) pipelines: Mutex<HashMap<PipelineKey, PipelineSlot>>,
     pub(crate) shader_modules: Mutex<HashMap<(Program, FeatureKey), ShaderSlot>>,
@@ -126,6 +128,10 @@ impl GpuContext {
             label: Some("trace io"),
             entries: &[storage_entry(0, true), storage_entry(1, false), storage_entry(2, false)],
         });
+        let closest_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("closest io"),
+            entries: &[storage_entry(0, true), storage_entry(1, false)],
+        });
         let wavefront_entries: Vec<_> = (0..wavefront::BINDINGS).map(|b| storage_entry(b, false)).collect();
         let wavefront_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("wavefront queues"),
@@ -141,6 +147,7 @@ impl GpuContext {
             scene_layouts: Mutex::new(HashMap::new()),
             render_layout,
             trace_layout,
+            closest_layout,
             wavefront_layout,
             pipelines: Mutex::new(HashMap::new()),
             shader_modules: Mutex::new(HashMap::new()),

@@ -3,13 +3,14 @@
 //!
 //! [`GpuContext`] owns the device (`context.rs`, its errors in `error.rs`) and caches one
 //! pipeline per (program, [`FeatureKey`]) (`pipelines.rs`); [`SceneBuffers`] holds a scene's
-//! storage buffers (`scene_buffers.rs`); [`render`] and [`trace`] dispatch.
+//! storage buffers (`scene_buffers.rs`); [`render`], [`trace`] and [`closest`] dispatch.
 //!
 //! Every readback has an async form for web pages, which cannot block (`readback.rs`):
 //! [`GpuContext::read_buffer_async`], [`tiles::render_region_async`],
 //! [`PathAccumulator::image_async`].
 
 pub mod aov;
+pub mod closest;
 mod context;
 pub mod denoise;
 mod error;

@@ -114,6 +114,7 @@ impl GpuContext {
         let io_layout = match program {
             Program::Whitted | Program::Path | Program::View | Program::Aov => &self.render_layout,
             Program::Trace => &self.trace_layout,
+            Program::Closest => &self.closest_layout,
             Program::Wavefront => &self.wavefront_layout,
         };
         let scene_layout = self.scene_layout(&scene_bindings);

@@ -31,6 +31,7 @@ pub const MODULES: &[(&str, &str)] = &[
     ("shaders/modules/plane.wgsl", include_str!("../shaders/modules/plane.wgsl")),
     ("shaders/modules/triangle.wgsl", include_str!("../shaders/modules/triangle.wgsl")),
     ("shaders/modules/traverse.wgsl", include_str!("../shaders/modules/traverse.wgsl")),
+    ("shaders/modules/closest.wgsl", include_str!("../shaders/modules/closest.wgsl")),
     ("shaders/modules/spawn.wgsl", include_str!("../shaders/modules/spawn.wgsl")),
     ("shaders/modules/camera.wgsl", include_str!("../shaders/modules/camera.wgsl")),
     ("shaders/modules/texture.wgsl", include_str!("../shaders/modules/texture.wgsl")),
@@ -69,11 +70,20 @@ pub enum Program {
     /// `aov.wgsl`: the output variables besides radiance (albedo, normal, depth, position,
     /// object, material), one camera ray per pixel and dispatch.
     Aov,
+    /// `closest.wgsl`: closest-point queries, the nearest surface point of each query point.
+    Closest,
 }
 
 impl Program {
-    pub const ALL: [Program; 6] =
-        [Program::Whitted, Program::Path, Program::Wavefront, Program::Trace, Program::View, Program::Aov];
+    pub const ALL: [Program; 7] = [
+        Program::Whitted,
+        Program::Path,
+        Program::Wavefront,
+        Program::Trace,
+        Program::View,
+        Program::Aov,
+        Program::Closest,
+    ];
 
     pub fn source(self) -> (&'static str, &'static str) {
         match self {
@@ -83,6 +93,7 @@ impl Program {
             Program::Wavefront => ("shaders/wavefront.wgsl", include_str!("../shaders/wavefront.wgsl")),
             Program::View => ("shaders/view.wgsl", include_str!("../shaders/view.wgsl")),
             Program::Aov => ("shaders/aov.wgsl", include_str!("../shaders/aov.wgsl")),
+            Program::Closest => ("shaders/closest.wgsl", include_str!("../shaders/closest.wgsl")),
         }
     }
 }

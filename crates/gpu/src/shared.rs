@@ -112,6 +112,14 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("GPU_STACK", U32(bvh::MAX_DEPTH)),
         // 1 + 2γ(3), the far-distance growth of the slab test (accel::slab::slab).
         ("SLAB_GROW", F32(1.0 + 2.0 * <f32 as Real>::gamma_bound(3))),
+        // Closest points: the growth of the best squared distance a box is pruned against
+        // (accel::gpu_bvh::closest_grow); the square of the sine below which a triangle is its
+        // edges, γ(16)·γ(16) rounded in f32 as geometry::closest's Triangle::closest rounds its
+        // `g * g` (shared squared: a product of two constants would be folded in the shader,
+        // leaving no constant of the shared name); the PrimRef of no primitive.
+        ("CLOSEST_GROW", F32(bvh::closest_grow())),
+        ("CLOSEST_SLIVER_SQ", F32(<f32 as Real>::gamma_bound(16) * <f32 as Real>::gamma_bound(16))),
+        ("CLOSEST_NONE", U32(super::closest::NONE)),
         // Shading and sampling (render::*).
         ("WHITTED_STACK", U32(limits::WHITTED_STACK as u32)),
         ("SHADOW_PASSES", U32(limits::SHADOW_PASSES)),
@@ -143,6 +151,7 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         // Workgroup sizes the host dispatches by.
         ("TILE_WORKGROUP", U32(super::tiles::WORKGROUP)),
         ("TRACE_WORKGROUP", U32(super::trace::WORKGROUP as u32)),
+        ("CLOSEST_WORKGROUP", U32(super::closest::WORKGROUP as u32)),
         ("WAVEFRONT_WORKGROUP", U32(super::wavefront::WORKGROUP)),
         // The wavefront tracer's counters (backend::gpu::wavefront::counter).
         ("WF_PATHS_IN", U32(super::wavefront::counter::PATHS_IN)),

@@ -108,7 +108,9 @@ pub async fn trace_async(
     Ok(out)
 }
 
-fn rw_buffer(ctx: &GpuContext, what: &str, size: u64) -> Result<wgpu::Buffer, GpuError> {
+/// A storage buffer the shader writes and the host reads back, of `size` bytes, checked
+/// against the binding limit before it is made (also the closest-point queries').
+pub(crate) fn rw_buffer(ctx: &GpuContext, what: &str, size: u64) -> Result<wgpu::Buffer, GpuError> {
     ctx.check_binding_size(what, size)?;
     ctx.scoped(what, || {
         ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -138,16 +140,28 @@ fn dispatch(
             wgpu::BindGroupEntry { binding: 2, resource: offsets.as_entire_binding() },
         ],
     });
+    dispatch_query(ctx, pipeline, scene, &io, n.div_ceil(WORKGROUP) as u32, "a ray query")
+}
+
+/// Submits one dispatch of a query program: the scene's bind group, the query's own `io`
+/// (group 1), `groups` workgroups; `what` names it in errors.
+pub(crate) fn dispatch_query(
+    ctx: &GpuContext,
+    pipeline: &CachedPipeline,
+    scene: &SceneBuffers,
+    io: &wgpu::BindGroup,
+    groups: u32,
+    what: &str,
+) -> Result<(), GpuError> {
     let mut enc = ctx.device.create_command_encoder(&Default::default());
     {
         let mut pass = enc.begin_compute_pass(&Default::default());
         pass.set_pipeline(&pipeline.pipeline);
         pass.set_bind_group(0, &scene.bind_group(ctx, pipeline), &[]);
-        pass.set_bind_group(1, &io, &[]);
-        pass.dispatch_workgroups(n.div_ceil(WORKGROUP) as u32, 1, 1);
+        pass.set_bind_group(1, io, &[]);
+        pass.dispatch_workgroups(groups, 1, 1);
     }
-    ctx.submit("a ray query", enc)?;
-    Ok(())
+    ctx.submit(what, enc).map(|_| ())
 }
 
 /// Spawned rays on the GPU, the twin of [`strahl_cpu::trace_spawn`]: per pair, the

@@ -10,13 +10,16 @@
 //! [`nearest`] and [`all`] walk it exactly as `shaders/modules/traverse.wgsl` and `shaders/trace.wgsl`
 //! do, so a GPU/CPU difference can be bisected to the traversal; the CPU renderers themselves
 //! walk the 8-wide tree ([`super::wide_traverse`]). All return exactly what brute force returns
-//! (the tie rule of [`Nearest`] makes the visiting order irrelevant).
+//! (the tie rule of [`Nearest`] makes the visiting order irrelevant). [`closest`], the nearest
+//! surface point of a query point, walks it as `shaders/closest.wgsl` does and returns what
+//! [`crate::proximity::closest_brute`] returns (the tie rule of [`Closest::offer`]).
 
 use super::bvh::Bvh;
 use super::slab::safe_inverse;
 use crate::geometry::{Shape, Triangle};
 use crate::math::{Ray, Real, V3};
 use crate::primitives::{Hit, Nearest, PrimKind, PrimRef, Primitives, sort_hits};
+use crate::proximity::Closest;
 use bytemuck::{Pod, Zeroable};
 
 /// Child link flag: the child is a leaf (else the index of an inner node).
@@ -399,6 +402,96 @@ pub fn all(bvh: &GpuBvh, prims: &Primitives<f32>, ray: &Ray<f32>, tmin: f32, tma
     hits
 }
 
+/// 1 + 2γ(4) in f32: the growth of the best squared distance a box's squared distance is
+/// compared with in the point walks ([`crate::proximity::closest`], [`closest`] and
+/// `CLOSEST_GROW` in `shaders/closest.wgsl`), which covers the box distance's rounding (γ(4)
+/// relative: three squares summed), so that no box holding an equally near foot is skipped.
+pub fn closest_grow() -> f32 {
+    1.0 + 2.0 * <f32 as Real>::gamma_bound(4)
+}
+
+/// Squared distance from `p` to the box (lo, hi), 0 inside it: the sum of the squared
+/// per-axis gaps of [`crate::proximity::box_dist2`] in the same order, capped at `f32::MAX`
+/// (WGSL cannot spell infinity: a gap that overflows compares as the largest float, against a
+/// bound that is `f32::MAX` until a foot is found), as `box_dist2` in `shaders/closest.wgsl`.
+#[inline]
+pub fn box_dist2(lo: &[f32; 3], hi: &[f32; 3], p: V3<f32>) -> f32 {
+    let mut d2 = 0.0f32;
+    for a in 0..3 {
+        let d = (lo[a] - p[a]).max(p[a] - hi[a]).max(0.0);
+        d2 += d * d;
+    }
+    d2.min(f32::MAX)
+}
+
+/// The nearest surface point of the scene to `p` (`None` only for an empty scene), walking the
+/// collapsed tree as `closest_point` in `shaders/closest.wgsl` does: the planes first, then
+/// depth first from the root, at each node the children whose boxes lie within the bound
+/// (the best squared distance grown by [`closest_grow`], `f32::MAX` before any foot), the
+/// nearer first (b where its box is strictly nearer, else a), the other pushed with its box
+/// distance and dropped when popped beyond the bound of then. Identical to
+/// [`crate::proximity::closest_brute`] (and to [`crate::proximity::closest`] on the binary
+/// tree, whose boxes these are): the bound only skips boxes farther than the best foot, and
+/// [`Closest::offer`]'s tie rule makes the order of the offers irrelevant.
+pub fn closest(bvh: &GpuBvh, prims: &Primitives<f32>, p: V3<f32>) -> Option<Closest<f32>> {
+    let mut best = None;
+    for r in prims.plane_refs() {
+        Closest::offer(&mut best, r, prims.closest_of(r, p));
+    }
+    if bvh.nodes.is_empty() {
+        return best;
+    }
+    let grow = closest_grow();
+    let bound = |best: &Option<Closest<f32>>| best.map_or(f32::MAX, |b| b.foot.dist2 * grow);
+    let mut stack: Vec<(u32, f32)> = Vec::with_capacity(MAX_DEPTH as usize);
+    let mut cur = Some(0u32);
+    while let Some(link) = cur {
+        cur = None;
+        match Link::decode(link) {
+            Link::Inner(i) => {
+                let n = &bvh.nodes[i];
+                let tb = bound(&best);
+                let da = box_dist2(&n.lo_a, &n.hi_a, p);
+                let db = box_dist2(&n.lo_b, &n.hi_b, p);
+                // Only a root that is a leaf has an absent child (b), whose empty box would
+                // measure f32::MAX.
+                match (da <= tb, n.link_b != LINK_EMPTY && db <= tb) {
+                    (true, true) => {
+                        let (near, far, dfar) =
+                            if db < da { (n.link_b, n.link_a, da) } else { (n.link_a, n.link_b, db) };
+                        stack.push((far, dfar));
+                        cur = Some(near);
+                    }
+                    (true, false) => cur = Some(n.link_a),
+                    (false, true) => cur = Some(n.link_b),
+                    (false, false) => {}
+                }
+            }
+            Link::Triangles { first, count } => {
+                for k in first..first + count {
+                    let r = PrimRef::new(PrimKind::Triangle, bvh.triangles[k].index as usize);
+                    Closest::offer(&mut best, r, bvh.triangle(k).closest(p));
+                }
+            }
+            Link::Shapes { first, count } => {
+                for &r in &bvh.shape_refs[first..first + count] {
+                    Closest::offer(&mut best, PrimRef(r), prims.closest_of(PrimRef(r), p));
+                }
+            }
+        }
+        if cur.is_none() {
+            let tb = bound(&best);
+            while let Some((link, d)) = stack.pop() {
+                if d <= tb {
+                    cur = Some(link);
+                    break;
+                }
+            }
+        }
+    }
+    best
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -507,6 +600,55 @@ mod tests {
             let hit = nearest(&g, &p, &ray, 0.0, f32::INFINITY).expect("hits");
             assert_eq!((hit.t, hit.prim_ref), (4.0, PrimRef::new(PrimKind::Sphere, 0)));
             assert_eq!(all(&g, &p, &ray, 0.0, f32::INFINITY).len(), 2 * n);
+        }
+    }
+
+    #[test]
+    fn the_point_walk_returns_exactly_what_brute_force_returns() {
+        use crate::proximity::{closest as binary_closest, closest_brute};
+        let prims = crate::primitives::testutil::mixed_scene(5);
+        let bvh = Bvh::build(&prims);
+        let g = GpuBvh::collapse(&bvh, &prims).unwrap();
+        let mut rng = TestRng(17);
+        for k in 0..4000 {
+            let p = match k % 6 {
+                // On a surface (a foot of a random point), and just off one.
+                0 => closest_brute(&prims, rng.in_cube(55.0).cast()).unwrap().foot.point,
+                1 => {
+                    closest_brute(&prims, rng.in_cube(55.0).cast()).unwrap().foot.point
+                        + rng.unit_vector().cast() * 1e-3
+                }
+                // Inside the scene's cube, around it, far from it, and so far that squared
+                // distances overflow (every foot at infinity: the tie rule alone decides).
+                2 => rng.in_cube(50.0).cast(),
+                3 => rng.in_cube(120.0).cast(),
+                4 => rng.in_cube(1e4).cast(),
+                _ => rng.in_cube(1e25).cast(),
+            };
+            let want = closest_brute(&prims, p);
+            assert!(want.is_some());
+            assert_eq!(closest(&g, &prims, p), want, "point {k} at {p:?}");
+            assert_eq!(binary_closest(&bvh, &prims, p), want, "point {k} at {p:?}");
+        }
+    }
+
+    #[test]
+    fn the_point_walk_of_a_leaf_root_an_oversized_leaf_and_an_empty_scene() {
+        use crate::proximity::closest_brute;
+        for n in [0usize, 1, 3, 100] {
+            let mut p = Primitives::<f32>::default();
+            for i in 0..n {
+                let tag = Tag { object: i as u32, face: 0, material: 0 };
+                let center = V3::new(0.0, 0.0, 5.0 + (i % 3) as f32);
+                p.spheres.push(Tagged { shape: Sphere { center, radius: 1.0 }, tag });
+            }
+            let bvh = Bvh::build(&p);
+            let g = GpuBvh::collapse(&bvh, &p).unwrap();
+            for q in [V3::new(0.0, 0.0, 0.0), V3::new(0.0, 0.0, 5.5), V3::new(3.0, -2.0, 40.0)] {
+                let got = closest(&g, &p, q);
+                assert_eq!(got, closest_brute(&p, q), "{n} spheres, point {q:?}");
+                assert_eq!(got.is_none(), n == 0);
+            }
         }
     }
 

@@ -49,26 +49,25 @@ fn closest_with(w: &WideBvh, prims: &Primitives<f32>, p: V3<f32>) -> Option<Clos
             let node = w.node(word);
             let b = &node.bounds;
             // `proximity::box_dist2`'s operations, eight boxes at once.
-            for k in 0..WIDTH {
+            for (k, d) in d2.iter_mut().enumerate() {
                 let dx = (b[0][k] - p.x).max(p.x - b[1][k]).max(0.0);
                 let dy = (b[2][k] - p.y).max(p.y - b[3][k]).max(0.0);
                 let dz = (b[4][k] - p.z).max(p.z - b[5][k]).max(0.0);
-                d2[k] = dx * dx + dy * dy + dz * dz;
+                *d = dx * dx + dy * dy + dz * dz;
             }
             let limit = bound(&best);
             // The children within the bound, nearest first: it is walked now, the others are
             // deferred farthest first, so the stack pops them nearest first.
             let mut near = [(0.0f32, 0u32); WIDTH];
             let mut n = 0;
-            for k in 0..WIDTH {
-                let child = node.child[k];
-                if child != EMPTY_CHILD && d2[k] <= limit {
+            for (&child, &d) in node.child.iter().zip(&d2) {
+                if child != EMPTY_CHILD && d <= limit {
                     let mut i = n;
-                    while i > 0 && near[i - 1].0 < d2[k] {
+                    while i > 0 && near[i - 1].0 < d {
                         near[i] = near[i - 1];
                         i -= 1;
                     }
-                    near[i] = (d2[k], child);
+                    near[i] = (d, child);
                     n += 1;
                 }
             }

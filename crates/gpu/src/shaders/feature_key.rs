@@ -73,7 +73,7 @@ impl FeatureKey {
     /// The split of the scene's arrays across bindings ([`Split`]): not a flag, set only where
     /// an array exceeds one binding.
     pub const SPLIT: FeatureKey = FeatureKey::from_bits_retain(crate::split::MASK);
-    /// Flags that change the trace program (it has no shading code).
+    /// Flags that change the trace and closest-point programs (they have no shading code).
     pub const GEOMETRY: FeatureKey = Self::SPHERES
         .union(Self::CYLINDERS)
         .union(Self::TRIANGLES)
@@ -161,12 +161,12 @@ impl FeatureKey {
         .collect()
     }
 
-    /// The key as the program sees it: the trace and view programs ignore shading flags, the
-    /// AOV program the lights'.
+    /// The key as the program sees it: the trace, view and closest-point programs ignore
+    /// shading flags, the AOV program the lights'.
     pub fn for_program(self, p: Program) -> FeatureKey {
         match p {
             Program::Whitted | Program::Path | Program::Wavefront => self,
-            Program::Trace | Program::View => self & Self::GEOMETRY,
+            Program::Trace | Program::View | Program::Closest => self & Self::GEOMETRY,
             Program::Aov => self & Self::GEOMETRY.union(Self::SPECULAR).union(Self::PBR).union(Self::ASSETS),
         }
     }

@@ -358,6 +358,7 @@ fn shared_constants_reach_the_composed_shaders_exactly() {
 /// size and member offsets of its Rust twin (as naga's layouter computes them).
 #[test]
 fn wgsl_struct_layouts_equal_the_rust_structs() {
+    use crate::closest::GpuClosestPoint;
     use std::mem::{offset_of, size_of};
     use strahl_core::accel::gpu_bvh::{GpuLeafTriangle, GpuNode};
     use strahl_core::layout::*;
@@ -433,12 +434,14 @@ fn wgsl_struct_layouts_equal_the_rust_structs() {
         layout!("Emitter", FlatEmitter, [source, kind, cdf, pdf]),
         layout!("QueryRay", GpuQueryRay, [origin, tmin, dir, tmax]),
         layout!("QueryHit", GpuQueryHit, [normal, t, object, face, prim_ref, flags]),
+        layout!("ClosestPoint", GpuClosestPoint, [point, dist_sq, uv, prim_ref, part]),
     ];
     // Every struct is used by one of these programs in its all-features variant.
     let modules = [
         compose(Program::Whitted, FeatureKey::ALL).unwrap(),
         compose(Program::Path, FeatureKey::ALL).unwrap(),
         compose(Program::Trace, FeatureKey::ALL).unwrap(),
+        compose(Program::Closest, FeatureKey::ALL).unwrap(),
     ];
     for (name, size, fields) in expected {
         let found = modules.iter().find_map(|m| {
@@ -486,6 +489,7 @@ fn rust_struct_of(name: &str) -> &'static str {
         "Emitter" => "FlatEmitter",
         "QueryRay" => "GpuQueryRay",
         "QueryHit" => "GpuQueryHit",
+        "ClosestPoint" => "GpuClosestPoint",
         "TextureInfo" => "FlatTexture",
         "TriangleAttrs" => "FlatTriangleAttrs",
         "Environment" => "FlatEnvironment",
@@ -496,7 +500,11 @@ fn rust_struct_of(name: &str) -> &'static str {
 /// The field names of `pub struct NAME` as written in the source of the buffer layouts,
 /// so that a field added to the Rust struct and not to the test's list is caught.
 fn rust_fields(name: &str) -> Vec<String> {
-    let sources = [include_str!("../../../core/src/layout.rs"), include_str!("../../../core/src/accel/gpu_bvh.rs")];
+    let sources = [
+        include_str!("../../../core/src/layout.rs"),
+        include_str!("../../../core/src/accel/gpu_bvh.rs"),
+        include_str!("../closest.rs"),
+    ];
     let start = format!("pub struct {name} {{");
     let text = sources.iter().find_map(|s| s.split_once(&start).map(|(_, rest)| rest));
     let text = text.unwrap_or_else(|| panic!("pub struct {name} not found"));
