@@ -8,6 +8,7 @@ mod finishing;
 mod merge;
 mod output_image;
 mod progress;
+mod query;
 mod render;
 mod stiff;
 mod trace;
@@ -71,6 +72,9 @@ pub enum Command {
     Merge(merge::MergeArgs),
     /// Answer ray queries from a CSV file: nearest or every intersection per ray.
     Trace(trace::TraceArgs),
+    /// Answer point queries: the nearest surface point and the (signed) distance of each point
+    /// of a CSV file, or a distance grid over the scene.
+    Query(query::QueryArgs),
     /// Measure shader compile and frame times (specialised against all-features shaders), or
     /// with `bench rays` BVH build time and rays per second.
     Bench(bench::BenchArgs),
@@ -109,6 +113,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(a) => render::run(a),
         Command::Merge(a) => merge::run(a),
         Command::Trace(a) => trace::run(a),
+        Command::Query(a) => query::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Stiff(a) => stiff::run(a),
         #[cfg(feature = "viewer")]

@@ -1,4 +1,5 @@
-//! Batch ray queries (`strahl trace`): rays from CSV, hits to CSV.
+//! Batch ray queries (`strahl trace`): rays from CSV, hits to CSV; and the points of point
+//! queries (`strahl query`).
 //!
 //! Input header: `ox,oy,oz,dx,dy,dz` and optionally `tmin,tmax`, in any order. The direction
 //! is normalised here, so `t` is the distance along the ray (the lecture's μ). Output header
@@ -96,54 +97,94 @@ fn next_line(reader: &mut impl BufRead, buf: &mut Vec<u8>, line: usize) -> Resul
     Ok(Some(text))
 }
 
-/// Parses rays CSV from `reader`, at most `limit` bytes; `file` names it in errors.
-pub fn parse_rays_from(mut reader: impl BufRead, file: &str, limit: u64) -> Result<Vec<RayQuery>, RaysError> {
-    let err = |line: usize, message: String| RaysError { file: file.to_string(), line, message };
-    let mut buf = Vec::new();
-    let mut bytes = 0u64;
-    let mut ln = 0usize;
-    let mut next = |reader: &mut dyn BufRead| -> Result<Option<(usize, String)>, RaysError> {
+/// A CSV file of numbers read a non-blank line at a time, at most `limit` bytes in all, with
+/// the header's columns matched to the names a query file takes: what the rays and the points
+/// files share.
+struct NumberCsv<'a, B> {
+    reader: B,
+    file: &'a str,
+    limit: u64,
+    what: &'static str,
+    buf: Vec<u8>,
+    bytes: u64,
+    line: usize,
+}
+
+impl<'a, B: BufRead> NumberCsv<'a, B> {
+    fn new(reader: B, file: &'a str, limit: u64, what: &'static str) -> Self {
+        Self { reader, file, limit, what, buf: Vec::new(), bytes: 0, line: 0 }
+    }
+
+    fn err(&self, line: usize, message: String) -> RaysError {
+        RaysError { file: self.file.to_string(), line, message }
+    }
+
+    /// The next non-blank line, trimmed, with its number.
+    fn next(&mut self) -> Result<Option<(usize, String)>, RaysError> {
         loop {
-            ln += 1;
-            let Some(text) = next_line(&mut &mut *reader, &mut buf, ln).map_err(|m| err(ln, m))? else {
+            self.line += 1;
+            let ln = self.line;
+            let Some(text) = next_line(&mut self.reader, &mut self.buf, ln).map_err(|m| self.err(ln, m))? else {
                 return Ok(None);
             };
-            bytes += text.len() as u64 + 1;
-            if bytes > limit {
-                return Err(err(ln, format!("the rays file is larger than {limit} bytes, the most accepted")));
+            self.bytes += text.len() as u64 + 1;
+            if self.bytes > self.limit {
+                let message = format!("the {} file is larger than {} bytes, the most accepted", self.what, self.limit);
+                return Err(self.err(ln, message));
             }
             let t = text.trim();
             if !t.is_empty() {
                 return Ok(Some((ln, t.to_string())));
             }
         }
-    };
-    let (hline, header) = next(&mut reader)?
-        .ok_or_else(|| err(1, "empty file: expected the header ox,oy,oz,dx,dy,dz[,tmin,tmax]".into()))?;
-    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    }
+
+    /// Reads the header: for each of `known`, the column it is in (`usize::MAX` where it is
+    /// absent; the first `required` must be present), and the number of columns. `expected`
+    /// describes the header in errors.
+    fn header(&mut self, known: &[&str], required: usize, expected: &str) -> Result<(Vec<usize>, usize), RaysError> {
+        let (hline, header) =
+            self.next()?.ok_or_else(|| self.err(1, format!("empty file: expected the header {expected}")))?;
+        let names: Vec<&str> = header.split(',').map(str::trim).collect();
+        let mut col = vec![usize::MAX; known.len()];
+        for (i, name) in names.iter().enumerate() {
+            let Some(k) = known.iter().position(|k| k == name) else {
+                return Err(self.err(hline, format!("unknown column \"{name}\"; expected {expected}")));
+            };
+            if col[k] != usize::MAX {
+                return Err(self.err(hline, format!("column \"{name}\" appears twice")));
+            }
+            col[k] = i;
+        }
+        if let Some(k) = (0..required).find(|&k| col[k] == usize::MAX) {
+            return Err(self.err(hline, format!("missing column \"{}\"", known[k])));
+        }
+        Ok((col, names.len()))
+    }
+
+    /// The next data line's fields, checked against the header's count.
+    fn fields(&mut self, columns: usize) -> Result<Option<(usize, Vec<String>)>, RaysError> {
+        let Some((ln, line)) = self.next()? else { return Ok(None) };
+        let fields: Vec<String> = line.split(',').map(|f| f.trim().to_string()).collect();
+        if fields.len() != columns {
+            return Err(self.err(ln, format!("{} fields, the header has {columns}", fields.len())));
+        }
+        Ok(Some((ln, fields)))
+    }
+
+    /// Field `s` of column `name` as a number.
+    fn number(&self, ln: usize, name: &str, s: &str) -> Result<f64, RaysError> {
+        s.parse().map_err(|_| self.err(ln, format!("{name}: not a number: \"{s}\"")))
+    }
+}
+
+/// Parses rays CSV from `reader`, at most `limit` bytes; `file` names it in errors.
+pub fn parse_rays_from(reader: impl BufRead, file: &str, limit: u64) -> Result<Vec<RayQuery>, RaysError> {
     const KNOWN: [&str; 8] = ["ox", "oy", "oz", "dx", "dy", "dz", "tmin", "tmax"];
-    let mut col = [usize::MAX; 8];
-    for (i, name) in names.iter().enumerate() {
-        let Some(k) = KNOWN.iter().position(|k| k == name) else {
-            return Err(err(
-                hline,
-                format!("unknown column \"{name}\"; expected ox,oy,oz,dx,dy,dz and optionally tmin,tmax"),
-            ));
-        };
-        if col[k] != usize::MAX {
-            return Err(err(hline, format!("column \"{name}\" appears twice")));
-        }
-        col[k] = i;
-    }
-    if let Some(k) = (0..6).find(|&k| col[k] == usize::MAX) {
-        return Err(err(hline, format!("missing column \"{}\"", KNOWN[k])));
-    }
+    let mut csv = NumberCsv::new(reader, file, limit, "rays");
+    let (col, columns) = csv.header(&KNOWN, 6, "ox,oy,oz,dx,dy,dz and optionally tmin,tmax")?;
     let mut rays = Vec::new();
-    while let Some((ln, line)) = next(&mut reader)? {
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if fields.len() != names.len() {
-            return Err(err(ln, format!("{} fields, the header has {}", fields.len(), names.len())));
-        }
+    while let Some((ln, fields)) = csv.fields(columns)? {
         let mut v = [0.0f64; 8];
         v[6] = 0.0;
         v[7] = f64::INFINITY;
@@ -151,19 +192,19 @@ pub fn parse_rays_from(mut reader: impl BufRead, file: &str, limit: u64) -> Resu
             if col[k] == usize::MAX {
                 continue;
             }
-            let s = fields[col[k]];
-            let x: f64 = s.parse().map_err(|_| err(ln, format!("{}: not a number: \"{s}\"", KNOWN[k])))?;
+            let s = &fields[col[k]];
+            let x = csv.number(ln, KNOWN[k], s)?;
             let finite_ok = x.is_finite() || (k == 7 && x == f64::INFINITY);
             if !finite_ok {
-                return Err(err(ln, format!("{}: must be finite, got {s}", KNOWN[k])));
+                return Err(csv.err(ln, format!("{}: must be finite, got {s}", KNOWN[k])));
             }
             v[k] = x;
         }
         let origin = V3::new(v[0], v[1], v[2]);
         let dir = unit_direction(V3::new(v[3], v[4], v[5]))
-            .ok_or_else(|| err(ln, "dx,dy,dz: the direction must be non-zero".into()))?;
+            .ok_or_else(|| csv.err(ln, "dx,dy,dz: the direction must be non-zero".into()))?;
         if !(v[6] >= 0.0) || !(v[7] > v[6]) {
-            return Err(err(ln, format!("tmin,tmax: need 0 <= tmin < tmax, got {} and {}", v[6], v[7])));
+            return Err(csv.err(ln, format!("tmin,tmax: need 0 <= tmin < tmax, got {} and {}", v[6], v[7])));
         }
         rays.push(RayQuery { origin, dir, tmin: v[6], tmax: v[7] });
     }
@@ -214,9 +255,76 @@ pub fn write_hit_rows<R: Real>(out: &mut String, index: usize, ray: &Ray<R>, hit
     }
 }
 
+/// Header of `strahl query`'s output: one row per point (`distance` signed with `--signed`:
+/// negative inside; an empty scene gives an empty `distance` and `object` −1).
+pub const CLOSEST_HEADER: &str = "point,distance,x,y,z,nx,ny,nz,object,prim";
+
+/// Reads a points CSV file (`strahl query --points`): header `x,y,z` in any order, finite
+/// values; refused before it is read where it is larger than [`MAX_RAYS_FILE_BYTES`].
+pub fn read_points(path: &Path) -> anyhow::Result<Vec<V3<f64>>> {
+    let cannot = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: cannot read points file: {e}", path.display());
+    let file = std::fs::File::open(path).map_err(|e| cannot(&e))?;
+    let meta = file.metadata().map_err(|e| cannot(&e))?;
+    if meta.is_dir() {
+        return Err(cannot(&"is a folder"));
+    }
+    if meta.is_file() && meta.len() > MAX_RAYS_FILE_BYTES {
+        anyhow::bail!(
+            "{}: points file is {} bytes; at most {MAX_RAYS_FILE_BYTES} are accepted",
+            path.display(),
+            meta.len()
+        );
+    }
+    Ok(parse_points_from(std::io::BufReader::new(file), &path.display().to_string())?)
+}
+
+/// Parses points CSV text; `file` names it in errors.
+pub fn parse_points(text: &str, file: &str) -> Result<Vec<V3<f64>>, RaysError> {
+    parse_points_from(text.as_bytes(), file)
+}
+
+fn parse_points_from(reader: impl BufRead, file: &str) -> Result<Vec<V3<f64>>, RaysError> {
+    const KNOWN: [&str; 3] = ["x", "y", "z"];
+    let mut csv = NumberCsv::new(reader, file, MAX_RAYS_FILE_BYTES, "points");
+    let (col, columns) = csv.header(&KNOWN, 3, "x,y,z")?;
+    let mut points = Vec::new();
+    while let Some((ln, fields)) = csv.fields(columns)? {
+        let mut v = [0.0f64; 3];
+        for k in 0..3 {
+            let s = &fields[col[k]];
+            let x = csv.number(ln, KNOWN[k], s)?;
+            if !x.is_finite() {
+                return Err(csv.err(ln, format!("{}: must be finite, got {s}", KNOWN[k])));
+            }
+            v[k] = x;
+        }
+        points.push(V3::new(v[0], v[1], v[2]));
+    }
+    Ok(points)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn points_files_parse_and_bad_ones_name_line_and_column() {
+        let p = parse_points("z,x,y\n3,1,2\n\n-1,0,0.5\n", "p.csv").unwrap();
+        assert_eq!(p, vec![V3::new(1.0, 2.0, 3.0), V3::new(0.0, 0.5, -1.0)]);
+        let cases = [
+            ("x,y\n", "p.csv:1: missing column \"z\""),
+            ("x,y,z,w\n", "p.csv:1: unknown column \"w\""),
+            ("x,y,x\n", "p.csv:1: column \"x\" appears twice"),
+            ("x,y,z\n0,0,inf\n", "p.csv:2: z: must be finite"),
+            ("x,y,z\n0,0,0\n0,a,0\n", "p.csv:3: y: not a number: \"a\""),
+            ("x,y,z\n0,0\n", "p.csv:2: 2 fields, the header has 3"),
+            ("", "p.csv:1: empty file"),
+        ];
+        for (text, want) in cases {
+            let e = parse_points(text, "p.csv").unwrap_err().to_string();
+            assert!(e.starts_with(want), "{e:?} does not start with {want:?}");
+        }
+    }
 
     #[test]
     fn parses_header_in_any_order_and_normalises() {
