@@ -8,6 +8,10 @@ inside the timing, as a user sees them):
   ``o3d.t.geometry.RaycastingScene`` and embreex (Embree 4 via ``EmbreeScene.run``);
 - ``count_intersections`` and ``list_intersections`` for strahl on the CPU and Open3D
   (embreex has neither);
+- ``compute_distance`` and ``compute_signed_distance`` (points, not rays) for strahl on the
+  CPU and Open3D: ``--points`` points, half uniform in the mesh's bounding box enlarged 1.2x
+  about its centre, half within 1 % of its diagonal of a random vertex (on strahl's GPU the
+  signed distances' winding numbers are summed on the CPU);
 
 on four ray sets, all float32 (N, 6):
 
@@ -215,6 +219,17 @@ def inside_rays(n: int, vertices: np.ndarray, seed: int) -> np.ndarray:
     return np.concatenate([origins, d], axis=1).astype(np.float32)
 
 
+def query_points(n: int, vertices: np.ndarray, seed: int) -> np.ndarray:
+    """Half uniform in the bounding box enlarged 1.2x about its centre, half within 1 % of
+    its diagonal of a random vertex: float32 (n, 3)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = vertices.min(axis=0).astype(np.float64), vertices.max(axis=0).astype(np.float64)
+    c, h = (lo + hi) / 2, (hi - lo) / 2 * 1.2
+    far = c + rng.uniform(-1, 1, (n - n // 2, 3)) * h
+    near = vertices[rng.integers(0, len(vertices), n // 2)] + rng.normal(0, 0.01 * np.linalg.norm(hi - lo), (n // 2, 3))
+    return np.concatenate([far, near]).astype(np.float32)
+
+
 def miss_rays(n: int, vertices: np.ndarray, seed: int) -> np.ndarray:
     """Rays that start on a sphere around the bounding box and point outwards (at most 60
     degrees off the radial direction, so away from the centre): none can reach the mesh."""
@@ -265,6 +280,8 @@ class Strahl(Contender):
         self.device = self.scene.device
         self.count = self.scene.count_intersections
         self.list = self.scene.list_intersections
+        self.distance = self.scene.compute_distance
+        self.signed = self.scene.compute_signed_distance
 
     def cast(self, rays):
         return self.scene.cast_rays(rays)
@@ -292,6 +309,12 @@ class Open3D(Contender):
 
     def list(self, rays):
         return {k: v.numpy() for k, v in self.scene.list_intersections(rays).items()}
+
+    def distance(self, points):
+        return self.scene.compute_distance(points).numpy()
+
+    def signed(self, points):
+        return self.scene.compute_signed_distance(points).numpy()
 
 
 class Embreex(Contender):
@@ -385,6 +408,8 @@ def main() -> int:
     ap.add_argument("--height", type=int, default=768, help="camera image height (default 768)")
     ap.add_argument("--query-rays", type=int, default=200_000,
                     help="rays of each set for count/list_intersections, the first N (default 200,000)")
+    ap.add_argument("--points", type=int, default=200_000,
+                    help="points of compute_distance and compute_signed_distance (default 200,000)")
     ap.add_argument("--seed", type=int, default=1, help="seed of the random rays (default 1)")
     ap.add_argument("--skip-gpu", action="store_true", help="leave out strahl on device='gpu'")
     ap.add_argument("--only", help="comma-separated contenders among " + ", ".join(CONTENDERS))
@@ -403,8 +428,8 @@ def main() -> int:
             ap.error(f"--only: unknown {', '.join(sorted(wanted - set(CONTENDERS)))}; choose among {', '.join(CONTENDERS)}")
     if args.skip_gpu:
         wanted.discard("strahl-gpu")
-    if args.repeat < 1 or args.rays < 1 or args.query_rays < 1:
-        ap.error("--repeat, --rays and --query-rays must be positive")
+    if args.repeat < 1 or args.rays < 1 or args.query_rays < 1 or args.points < 1:
+        ap.error("--repeat, --rays, --query-rays and --points must be positive")
 
     t0 = time.perf_counter()
     V, F = read_obj(args.obj)
@@ -482,9 +507,21 @@ def main() -> int:
                     text = list_agreement(s, o)
                 checks.append(f"{query.split('_')[0]:10s} {set_name:6s} strahl-cpu vs open3d: {text}")
 
+    points = query_points(args.points, V, args.seed)
+    pointers = [c for c in contenders if hasattr(c, "distance")]
+    for query, method in (("compute_distance", "distance"), ("compute_signed_distance", "signed")):
+        res = timed({c.name: (lambda c=c: getattr(c, method)(points)) for c in pointers}, args.repeat)
+        record(query, "points", len(points), res, "points, not rays")
+        if "strahl-cpu" in res and "open3d" in res:
+            s, o = res["strahl-cpu"][0], res["open3d"][0]
+            text = f"max |difference| {np.abs(s - o).max():.3g}"
+            if method == "signed":
+                text += f", signs equal {100 * np.mean((s < 0) == (o < 0)):.4f}%"
+            checks.append(f"{method:10s} points strahl-cpu vs open3d: {text}")
+
     # The table.
-    print(f"throughput, best of {args.repeat} (after one warm-up call), numpy rays in -> numpy arrays out:")
-    header = f"{'query':20s} {'rays':7s} {'n':>9s}  {'contender':10s} {'best s':>8s} {'median s':>9s} {'Mrays/s':>9s}"
+    print(f"throughput (M/s: million rays, or points, per second), best of {args.repeat} (after one warm-up call), numpy in -> numpy out:")
+    header = f"{'query':24s} {'rays':7s} {'n':>9s}  {'contender':10s} {'best s':>8s} {'median s':>9s} {'M/s':>9s}"
     print(header)
     print("-" * len(header))
     last = None
@@ -492,7 +529,7 @@ def main() -> int:
         if last is not None and (r["query"], r["rays"]) != last:
             print()
         last = (r["query"], r["rays"])
-        print(f"{r['query']:20s} {r['rays']:7s} {r['n_rays']:9,d}  {r['contender']:10s} "
+        print(f"{r['query']:24s} {r['rays']:7s} {r['n_rays']:9,d}  {r['contender']:10s} "
               f"{r['best_s']:8.4f} {r['median_s']:9.4f} {r['mrays_per_s']:9.2f}")
     if subset_note:
         print(f"\ncount_intersections and list_intersections use {subset_note} (--query-rays).")
@@ -500,13 +537,14 @@ def main() -> int:
     # Ratios of throughputs: above 1 means the first is faster.
     speed = {(r["query"], r["rays"], r["contender"]): r["mrays_per_s"] for r in rows}
     print("\nratios of throughput (> 1: the first is faster):")
-    pairs = [("strahl-cpu", "open3d"), ("strahl-cpu", "embreex"), ("strahl-gpu", "open3d")]
-    for query in ("cast_rays", "count_intersections", "list_intersections"):
+    pairs = [("strahl-cpu", "open3d"), ("strahl-cpu", "embreex"), ("strahl-gpu", "open3d"), ("strahl-gpu", "strahl-cpu")]
+    for query in ("cast_rays", "count_intersections", "list_intersections", "compute_distance",
+                  "compute_signed_distance"):
         for a, b in pairs:
             cells = [f"{s} {speed[(query, s, a)] / speed[(query, s, b)]:6.2f}"
-                     for s in ray_sets if (query, s, a) in speed and (query, s, b) in speed]
+                     for s in list(ray_sets) + ["points"] if (query, s, a) in speed and (query, s, b) in speed]
             if cells:
-                print(f"  {query:20s} {a + ' / ' + b:25s} " + "   ".join(cells))
+                print(f"  {query:24s} {a + ' / ' + b:25s} " + "   ".join(cells))
 
     slower = [s for s in ("camera", "random") if speed.get(("cast_rays", s, "strahl-cpu"), np.inf) < speed.get(("cast_rays", s, "open3d"), 0)]
     if slower:

@@ -8,6 +8,7 @@
 
 mod arrays;
 mod device;
+mod points;
 mod queries;
 mod render;
 mod scene;
@@ -72,6 +73,16 @@ trait Outputs {
 impl<F: queries::OutFloat> Outputs for queries::Nearest<F> {
     fn put(self, d: &Bound<'_, PyDict>) -> PyResult<()> {
         set(d, "t_hit", self.t_hit)?;
+        set(d, "geometry_ids", self.geometry_ids)?;
+        set(d, "primitive_ids", self.primitive_ids)?;
+        set(d, "primitive_uvs", self.primitive_uvs)?;
+        set(d, "primitive_normals", self.primitive_normals)
+    }
+}
+
+impl<F: queries::OutFloat> Outputs for points::ClosestPoints<F> {
+    fn put(self, d: &Bound<'_, PyDict>) -> PyResult<()> {
+        set(d, "points", self.points)?;
         set(d, "geometry_ids", self.geometry_ids)?;
         set(d, "primitive_ids", self.primitive_ids)?;
         set(d, "primitive_uvs", self.primitive_uvs)?;
@@ -168,6 +179,50 @@ impl PyScene {
             PyErr::warn(py, &py.get_type::<PyRuntimeWarning>(), &message, 2)?;
         }
         Ok(result)
+    }
+}
+
+/// Runs point query `$query` (generic over the points' and the outputs' float types) on the
+/// flat `$values`, in the scene's precision, with `$rest` after the points.
+macro_rules! point_query {
+    ($self:ident, $py:ident, $floats:ident, $query:ident $(, $rest:expr)*) => {{
+        match (&$floats.array, $self.f64) {
+            (FloatArray::F32(a), false) => {
+                let v = contiguous(a)?;
+                Either::F32($self.run($py, |b, e| points::$query::<_, f32>(b, e, v $(, $rest)*))?)
+            }
+            (FloatArray::F64(a), false) => {
+                let v = contiguous(a)?;
+                Either::F32($self.run($py, |b, e| points::$query::<_, f32>(b, e, v $(, $rest)*))?)
+            }
+            (FloatArray::F32(a), true) => {
+                let v = contiguous(a)?;
+                Either::F64($self.run($py, |b, e| points::$query::<_, f64>(b, e, v $(, $rest)*))?)
+            }
+            (FloatArray::F64(a), true) => {
+                let v = contiguous(a)?;
+                Either::F64($self.run($py, |b, e| points::$query::<_, f64>(b, e, v $(, $rest)*))?)
+            }
+        }
+    }};
+}
+
+/// A query's answer in float32 (the f32 scene) or float64 (the oracle).
+enum Either<A, B> {
+    F32(A),
+    F64(B),
+}
+
+impl PyScene {
+    /// The points of a point query, checked: finite, as many as `lead` says.
+    fn points<'py>(&self, points: &Bound<'py, PyAny>, lead: Vec<usize>) -> PyResult<Floats<'py>> {
+        let rows = Rows::new("query_points", lead);
+        let floats = Floats::extract(points, &rows, 3)?;
+        match &floats.array {
+            FloatArray::F32(a) => points::check_points(contiguous(a)?, &rows)?,
+            FloatArray::F64(a) => points::check_points(contiguous(a)?, &rows)?,
+        }
+        Ok(floats)
     }
 }
 
@@ -286,6 +341,39 @@ impl PyScene {
         lead: Vec<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
         dict_query!(self, py, rays, lead, list_intersections)
+    }
+
+    /// The nearest surface point of each point: a dict of flat arrays (points, geometry_ids,
+    /// primitive_ids, primitive_uvs, primitive_normals).
+    fn compute_closest_points<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        lead: Vec<usize>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let floats = self.points(points, lead)?;
+        let d = PyDict::new(py);
+        match point_query!(self, py, floats, closest_points) {
+            Either::F32(out) => out.put(&d)?,
+            Either::F64(out) => out.put(&d)?,
+        }
+        Ok(d)
+    }
+
+    /// The distance from each point to the nearest surface; `signed`: negative inside, by
+    /// the winding number.
+    fn compute_distance<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        lead: Vec<usize>,
+        signed: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let floats = self.points(points, lead)?;
+        Ok(match point_query!(self, py, floats, distances, signed) {
+            Either::F32(v) => v.into_pyarray(py).into_any(),
+            Either::F64(v) => v.into_pyarray(py).into_any(),
+        })
     }
 
     /// Renders the scene: (flat float32 pixels, where it rendered).

@@ -31,17 +31,26 @@ pub enum Engine {
 /// An output float: float32, or float64 for the f64 oracle.
 pub trait OutFloat: numpy::Element + Copy + Send + Sync {
     fn of(x: f64) -> Self;
+    fn to_f64(self) -> f64;
 }
 impl OutFloat for f32 {
     #[inline]
     fn of(x: f64) -> Self {
         x as f32
     }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
 }
 impl OutFloat for f64 {
     #[inline]
     fn of(x: f64) -> Self {
         x
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self
     }
 }
 

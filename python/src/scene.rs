@@ -1,7 +1,7 @@
 //! The scene a `RaycastingScene` holds: strahl's [`Scene`], grown by `add_triangles`,
 //! `add_spheres` and `add_cylinders` or read from a file, and what is built from it on the
 //! first query after a change (the BVH and its 8-wide form, the f64 oracle's tree, the
-//! buffers on the GPU), cached until the next change.
+//! winding numbers' far-field data, the buffers on the GPU), cached until the next change.
 
 use crate::arrays::{Floats, Rows, read_points, read_radii, read_triangles, value_error};
 use pyo3::exceptions::{PyMemoryError, PyOSError};
@@ -12,6 +12,7 @@ use strahl_core::accel::Bvh;
 use strahl_core::geometry::{Cylinder, Sphere, Triangle};
 use strahl_core::math::V3;
 use strahl_core::primitives::{Primitives, Tag};
+use strahl_core::proximity::winding::WindingTree;
 use strahl_core::render::{Prepared, available_memory, check_memory};
 use strahl_core::scene::mesh::MAX_MESH_TRIANGLES;
 use strahl_core::scene::{Camera, Geometry, ImageSize, Light, Object, Scene, SceneError, procedural};
@@ -37,6 +38,9 @@ pub struct Built {
     pub wide: WideBvh,
     ids: Vec<Ids>,
     oracle: OnceLock<(Primitives<f64>, Bvh)>,
+    /// The winding numbers' far-field data over `prep`'s tree, and over the oracle's.
+    winding: OnceLock<WindingTree<f32>>,
+    winding64: OnceLock<WindingTree<f64>>,
     gpu: OnceLock<Result<SceneBuffers, String>>,
 }
 
@@ -54,6 +58,19 @@ impl Built {
             let prims = Primitives::<f64>::from_scene(&self.prep.scene);
             let bvh = Bvh::build(&prims);
             (prims, bvh)
+        })
+    }
+
+    /// The far-field data of the f32 tree, built at its first use.
+    pub fn winding(&self) -> &WindingTree<f32> {
+        self.winding.get_or_init(|| WindingTree::build(&self.prep.bvh, &self.prep.prims))
+    }
+
+    /// The far-field data of the oracle's tree, built at its first use.
+    pub fn winding64(&self) -> &WindingTree<f64> {
+        self.winding64.get_or_init(|| {
+            let (p64, bvh) = self.oracle();
+            WindingTree::build(bvh, p64)
         })
     }
 
@@ -184,8 +201,15 @@ impl Contents {
         check_memory(&self.scene, available_memory()).map_err(|e| PyMemoryError::new_err(e.to_string()))?;
         let prep = Prepared::new(self.scene.clone());
         let wide = WideBvh::new(&prep.bvh, &prep.prims);
-        let built =
-            Arc::new(Built { prep, wide, ids: self.ids.clone(), oracle: OnceLock::new(), gpu: OnceLock::new() });
+        let built = Arc::new(Built {
+            prep,
+            wide,
+            ids: self.ids.clone(),
+            oracle: OnceLock::new(),
+            winding: OnceLock::new(),
+            winding64: OnceLock::new(),
+            gpu: OnceLock::new(),
+        });
         self.built = Some(built.clone());
         Ok(built)
     }

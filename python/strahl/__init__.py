@@ -191,6 +191,42 @@ class RaycastingScene:
         inside = odd.sum(axis=1) > nsamples // 2
         return inside.astype(np.float32).reshape(lead)
 
+    def compute_closest_points(self, query_points: Any, nthreads: int = 0) -> Dict[str, np.ndarray]:
+        """The nearest surface point to each point (..., 3): ``points`` (..., 3);
+        ``geometry_ids``, ``primitive_ids`` (...) uint32; ``primitive_uvs`` (..., 2), the
+        barycentric (u, v) of the point on its triangle, p = (1-u-v)v0 + u v1 + v v2 (0 for
+        spheres and cylinders); ``primitive_normals`` (..., 3), the triangle's unit normal
+        (v1-v0)x(v2-v0), outward for a sphere or cylinder. On a scene without geometry the
+        ids are ``INVALID_ID`` and the rest 0, as in Open3D."""
+        q, lead = _floats("query_points", query_points, 3)
+        out = self._scene.compute_closest_points(q, list(lead))
+        return _shape(out, lead, {"points": 3, "geometry_ids": 1, "primitive_ids": 1, "primitive_uvs": 2, "primitive_normals": 3})
+
+    def compute_distance(self, query_points: Any, nthreads: int = 0) -> np.ndarray:
+        """The distance from each point (..., 3) to the nearest surface, of the points'
+        leading shape (inf on a scene without geometry)."""
+        q, lead = _floats("query_points", query_points, 3)
+        return self._scene.compute_distance(q, list(lead), False).reshape(lead)
+
+    def compute_signed_distance(self, query_points: Any, nthreads: int = 0, nsamples: int = 1, sign: str = "winding") -> np.ndarray:
+        """The distance to the nearest surface, negative inside, of the points' leading shape.
+
+        ``sign="winding"`` (the default) decides inside by the generalized winding number of
+        the meshes (Jacobson et al. 2013), summed through the BVH with far-field
+        approximations (Barill et al. 2018), after faces reversed against their neighbours
+        are turned back: right where a mesh has a hole, flipped faces or self-intersections.
+        Spheres and closed cylinders are inside by their own exact tests. ``sign="parity"``
+        is Open3D's rule: the parity of a ray's hits, voted over ``nsamples`` (odd) rays, as
+        ``compute_occupancy`` decides it; ``nsamples`` is used only there."""
+        if sign not in ("winding", "parity"):
+            raise ValueError(f"sign={sign!r}: use \"winding\" or \"parity\"")
+        q, lead = _floats("query_points", query_points, 3)
+        if sign == "winding":
+            return self._scene.compute_distance(q, list(lead), True).reshape(lead)
+        d = self._scene.compute_distance(q, list(lead), False).reshape(lead)
+        inside = self.compute_occupancy(q.reshape(lead + (3,)), nsamples=nsamples) > 0
+        return np.where(inside, -d, d).astype(d.dtype)
+
     @staticmethod
     def create_rays_pinhole(*args: Any, **kwargs: Any) -> np.ndarray:
         """Rays of a pinhole camera, (height_px, width_px, 6) float32, exactly as Open3D
