@@ -118,8 +118,7 @@ impl Contents {
     /// camera, or an OBJ mesh. Geometry id = the object's index in the file, primitive id =
     /// the triangle inside it, as `strahl trace` reports them.
     pub fn load(path: &Path) -> PyResult<Self> {
-        let is_obj = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-        let scene = if is_obj { procedural::obj_scene(path) } else { Scene::load(path) }.map_err(scene_error)?;
+        let scene = procedural::scene_or_obj(path).map_err(scene_error)?;
         let ids = (0..scene.objects.len() as u32).map(|i| Ids { geometry: i, first_primitive: 0 }).collect();
         let geometries = scene.objects.len() as u32;
         Ok(Self { scene, ids, geometries, has_camera: true, built: None })

@@ -183,8 +183,7 @@ pub fn run(a: RaysArgs) -> Result<()> {
 }
 
 fn load(path: &Path) -> Result<Scene> {
-    let is_obj = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-    Ok(if is_obj { strahl_core::scene::procedural::obj_scene(path)? } else { Scene::load(path)? })
+    Ok(strahl_core::scene::procedural::scene_or_obj(path)?)
 }
 
 /// Nearest hits of `rays` on the current rayon pool, as a batch query or one ray at a time;

@@ -11,7 +11,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::io::{IsTerminal, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 use strahl_core::accel::Bvh;
@@ -145,22 +145,16 @@ pub fn run(a: QueryArgs) -> Result<()> {
     if let Some(path) = &a.output {
         strahl_core::output::check_file_target(path)?;
     }
-    let scene = load(&a.scene)?;
+    let scene = strahl_core::scene::procedural::scene_or_obj(&a.scene)?;
     super::print_scene_warnings(&scene);
     strahl_core::render::check_memory(&scene, strahl_core::render::available_memory())?;
     match a.precision {
-        Precision::F32 => run_in(&Engine::<f32>::new(&scene, a.signed), &scene, &a),
-        Precision::F64 => run_in(&Engine::<f64>::new(&scene, a.signed), &scene, &a),
+        Precision::F32 => run_in(&Engine::<f32>::new(&scene, a.signed), &a),
+        Precision::F64 => run_in(&Engine::<f64>::new(&scene, a.signed), &a),
     }
 }
 
-/// A scene file, or an OBJ mesh as strahl's other commands read one.
-fn load(path: &Path) -> Result<Scene> {
-    let is_obj = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-    Ok(if is_obj { strahl_core::scene::procedural::obj_scene(path)? } else { Scene::load(path)? })
-}
-
-fn run_in<R: Real>(engine: &Engine<R>, scene: &Scene, a: &QueryArgs) -> Result<()> {
+fn run_in<R: Real>(engine: &Engine<R>, a: &QueryArgs) -> Result<()> {
     let start = Instant::now();
     if let Some(n) = a.grid {
         let prims = &engine.prims;
@@ -193,7 +187,6 @@ fn run_in<R: Real>(engine: &Engine<R>, scene: &Scene, a: &QueryArgs) -> Result<(
             step.z,
             path.display()
         );
-        let _ = scene;
         return Ok(());
     }
     let points = read_points(a.points.as_ref().expect("clap requires --points or --grid"))?;

@@ -137,6 +137,12 @@ pub fn obj_scene(path: &Path) -> Result<Scene, SceneError> {
     Ok(mesh_scene(triangles, path.to_path_buf(), camera, ImageSize { width: OBJ_IMAGE_WIDTH, height }))
 }
 
+/// A scene file (strahl's TOML, glTF), or an OBJ mesh as [`obj_scene`] makes it a scene: what
+/// the ray and point queries and `strahl bench rays` take.
+pub fn scene_or_obj(path: &Path) -> Result<Scene, SceneError> {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) { obj_scene(path) } else { Scene::load(path) }
+}
+
 /// `dir/NAME_camera.json` for `dir/NAME.obj`.
 pub fn camera_file(obj: &Path) -> PathBuf {
     let stem = obj.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
