@@ -46,7 +46,14 @@ pub const MAX_RAYS_LINE_BYTES: usize = 4096;
 /// is read; any file is read a line at a time, so a stream without line breaks (/dev/zero)
 /// fails at its first [`MAX_RAYS_LINE_BYTES`] bytes.
 pub fn read_rays(path: &Path) -> anyhow::Result<Vec<RayQuery>> {
-    let cannot = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: cannot read rays file: {e}", path.display());
+    let reader = open_query_file(path, "rays")?;
+    Ok(parse_rays_from(reader, &path.display().to_string(), MAX_RAYS_FILE_BYTES)?)
+}
+
+/// Opens a query file (`what`: "rays" or "points") for reading a line at a time; a folder, or
+/// a regular file over [`MAX_RAYS_FILE_BYTES`], is refused before anything is read.
+fn open_query_file(path: &Path, what: &str) -> anyhow::Result<std::io::BufReader<std::fs::File>> {
+    let cannot = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: cannot read {what} file: {e}", path.display());
     let file = std::fs::File::open(path).map_err(|e| cannot(&e))?;
     let meta = file.metadata().map_err(|e| cannot(&e))?;
     if meta.is_dir() {
@@ -54,14 +61,12 @@ pub fn read_rays(path: &Path) -> anyhow::Result<Vec<RayQuery>> {
     }
     if meta.is_file() && meta.len() > MAX_RAYS_FILE_BYTES {
         anyhow::bail!(
-            "{}: rays file is {} bytes; at most {} are accepted",
+            "{}: {what} file is {} bytes; at most {MAX_RAYS_FILE_BYTES} are accepted",
             path.display(),
-            meta.len(),
-            MAX_RAYS_FILE_BYTES
+            meta.len()
         );
     }
-    let reader = std::io::BufReader::new(file);
-    Ok(parse_rays_from(reader, &path.display().to_string(), MAX_RAYS_FILE_BYTES)?)
+    Ok(std::io::BufReader::new(file))
 }
 
 /// Parses rays CSV text; `file` names it in errors.
@@ -262,20 +267,8 @@ pub const CLOSEST_HEADER: &str = "point,distance,x,y,z,nx,ny,nz,object,prim";
 /// Reads a points CSV file (`strahl query --points`): header `x,y,z` in any order, finite
 /// values; refused before it is read where it is larger than [`MAX_RAYS_FILE_BYTES`].
 pub fn read_points(path: &Path) -> anyhow::Result<Vec<V3<f64>>> {
-    let cannot = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: cannot read points file: {e}", path.display());
-    let file = std::fs::File::open(path).map_err(|e| cannot(&e))?;
-    let meta = file.metadata().map_err(|e| cannot(&e))?;
-    if meta.is_dir() {
-        return Err(cannot(&"is a folder"));
-    }
-    if meta.is_file() && meta.len() > MAX_RAYS_FILE_BYTES {
-        anyhow::bail!(
-            "{}: points file is {} bytes; at most {MAX_RAYS_FILE_BYTES} are accepted",
-            path.display(),
-            meta.len()
-        );
-    }
-    Ok(parse_points_from(std::io::BufReader::new(file), &path.display().to_string())?)
+    let reader = open_query_file(path, "points")?;
+    Ok(parse_points_from(reader, &path.display().to_string())?)
 }
 
 /// Parses points CSV text; `file` names it in errors.

@@ -8,6 +8,7 @@ use strahl_core::denoise::{Guides, ITERATIONS};
 use strahl_core::image::Image;
 use web_time::Instant;
 
+use crate::pipelines::storage_entry;
 use crate::shaders::DENOISE_WGSL;
 use crate::shared::DENOISE_WORKGROUP as WORKGROUP;
 
@@ -17,19 +18,6 @@ pub struct Denoiser {
     prepare: wgpu::ComputePipeline,
     atrous: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
-}
-
-fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
 }
 
 impl Denoiser {
