@@ -594,3 +594,41 @@ fn alpha_surfaces_cast_shadows_in_proportion() {
         assert!((shadowed - 0.75 * cos).abs() < 1e-4, "{what}: shadowed {shadowed} vs {}", 0.75 * cos);
     }
 }
+
+/// `KHR_materials_transmission`, `_ior` and `_volume` become a pbr material's glass share,
+/// index and absorption (−ln(attenuationColor) / attenuationDistance per unit length), a
+/// `thicknessFactor` of 0 is thin-walled (no absorption), and a `KHR_lights_punctual` spot
+/// light keeps its cone, range and axis (mirrored into strahl's space as everything is).
+#[test]
+fn transmission_volume_and_spot_lights_are_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let glass = r#"{"pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0, "roughnessFactor": 0.2},
+        "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.7}, "KHR_materials_ior": {"ior": 1.4},
+        "KHR_materials_volume": {"thicknessFactor": 1, "attenuationDistance": 2, "attenuationColor": [0.5, 1, 0.25]}}}"#;
+    let d = [0.3f32, -1.0, 0.2];
+    let path = write_gltf(dir.path(), "glass.gltf", &quad(), glass, &[], Some(d));
+    let json = std::fs::read_to_string(&path).unwrap().replace(
+        r#"{"type": "directional", "intensity": 3.14159265358979}"#,
+        r#"{"type": "spot", "intensity": 5, "range": 7, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.6}}"#,
+    );
+    std::fs::write(&path, json).unwrap();
+    let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let m = &scene.materials[0];
+    assert_eq!(m.kind, strahl_core::scene::MaterialKind::Pbr);
+    assert!((m.transmission - 0.7).abs() < 1e-6 && (m.ior - 1.4).abs() < 1e-6, "{m:?}");
+    let want = [0.5f64, 1.0, 0.25].map(|c| -c.ln() / 2.0);
+    for (got, want) in m.absorption.iter().zip(want) {
+        assert!((got - want).abs() < 1e-6, "{:?} vs {want:?}", m.absorption);
+    }
+    let strahl_core::scene::Light::Spot { direction, intensity, inner, outer, range, .. } = scene.lights[0] else {
+        panic!("{:?}", scene.lights[0])
+    };
+    let d = glam::DVec3::new(d[0] as f64, d[1] as f64, -(d[2] as f64)).normalize();
+    assert!((glam::DVec3::from(direction.to_array()) - d).length() < 1e-5, "{direction:?} vs {d:?}");
+    assert_eq!(intensity, [5.0; 3]);
+    assert!((inner - 0.2).abs() < 1e-6 && (outer - 0.6).abs() < 1e-6 && (range - 7.0).abs() < 1e-6);
+    // Thin-walled: no volume.
+    let thin = glass.replace(r#""thicknessFactor": 1"#, r#""thicknessFactor": 0"#);
+    let path = write_gltf(dir.path(), "thin.gltf", &quad(), &thin, &[], None);
+    assert_eq!(Scene::load(&path).unwrap().materials[0].absorption, [0.0; 3]);
+}

@@ -87,6 +87,11 @@ pub struct FlatMaterial {
     /// [`MATERIAL_ALPHA_MASK`]: alpha below this lets rays through.
     pub alpha_cutoff: f32,
     pub _pad: [u32; 2],
+    /// Absorption coefficient per unit length inside the material (Beer–Lambert), applied to
+    /// the segment a path ends on the back face ([`crate::render::bsdf`]); 0: clear.
+    pub absorption: [f32; 3],
+    /// pbr: `KHR_materials_transmission`'s factor ([`crate::render::bsdf::glass_share`]).
+    pub transmission: f32,
 }
 
 impl FlatMaterial {
@@ -121,6 +126,9 @@ pub const MATERIAL_ALPHA_MASK: u32 = 4;
 pub const MATERIAL_ALPHA_BLEND: u32 = 8;
 /// Either alpha flag.
 pub const MATERIAL_ALPHA: u32 = MATERIAL_ALPHA_MASK | MATERIAL_ALPHA_BLEND;
+/// Material flag: a rough dielectric scatters once, its lost energy not made up (Mitsuba's
+/// `roughdielectric`, pbrt's `DielectricBxDF`; [`crate::render::dielectric`]).
+pub const MATERIAL_SINGLE_SCATTERING: u32 = 16;
 
 pub const LIGHT_POINT: u32 = 0;
 pub const LIGHT_DIRECTIONAL: u32 = 1;
@@ -134,11 +142,24 @@ pub struct FlatLight {
     pub intensity: [f32; 3],
     /// [`LIGHT_STAND_IN`].
     pub flags: u32,
+    /// A spot light's axis ([`LIGHT_SPOT`]), the unit direction it shines along.
+    pub axis: [f32; 3],
+    /// `KHR_lights_punctual`'s cone ([`LIGHT_SPOT`]): the intensity is scaled by
+    /// clamp(cos θ · `cone_scale` + `cone_offset`, 0, 1)², θ from the axis.
+    pub cone_scale: f32,
+    pub cone_offset: f32,
+    /// Beyond this distance the light reaches nothing, with `KHR_lights_punctual`'s smooth
+    /// window before it; 0: unlimited.
+    pub range: f32,
+    pub _pad: [u32; 2],
 }
 
 /// Light flag: a point light standing in for an emissive object in Whitted mode (which has no
 /// area lights); path mode samples the object itself and skips it.
 pub const LIGHT_STAND_IN: u32 = 1;
+/// Light flag: a point light shines within a cone (a spot light: `axis`, `cone_scale`,
+/// `cone_offset`).
+pub const LIGHT_SPOT: u32 = 2;
 
 /// Emitter kind: an emissive triangle or sphere, `source` its [`crate::primitives::PrimRef`]
 /// (the only kind: point and directional lights are evaluated at every vertex, not chosen).

@@ -124,6 +124,10 @@ pub fn shade_vertex(
         }
     }
     let front = ray.dir.dot(hit.normal) < 0.0;
+    if !front && m.absorption != [0.0; 3] {
+        // The segment ran inside the material (it ends on a back face): Beer–Lambert.
+        p.beta = p.beta.mul_elem(absorbed(m, hit.t));
+    }
     let (ng, ns) = surface::shading_frame(m, front, hit.normal, s.normal, wo);
     if m.kind() == MaterialKind::Emissive || m.kind() == MaterialKind::Pbr {
         let cos_l = emitted_cos(m.flags, -ray.dir.dot(hit.normal));
@@ -147,7 +151,7 @@ pub fn shade_vertex(
         let origin = spawn_origin(&ray, hit.t, ng);
         for l in &g.lights[..f.num_lights as usize] {
             let Some(ls) = emitters::delta_light(l, x) else { continue };
-            let (fc, _) = eval_above(m, wo, ls.dir, ns, ng);
+            let (fc, _) = eval_above(m, wo, ls.dir, ns, ng, front);
             if fc.max_component() > 0.0 {
                 let tr = transmittance(inp, &Ray::new(origin, ls.dir), ls.dist * SHADOW_REACH);
                 if tr > 0.0 {
@@ -156,7 +160,7 @@ pub fn shade_vertex(
             }
         }
         if let Some(ls) = emitters::sample(g, f, x, u_light) {
-            let (fc, pdf) = eval_above(m, wo, ls.dir, ns, ng);
+            let (fc, pdf) = eval_above(m, wo, ls.dir, ns, ng, front);
             if fc.max_component() > 0.0 {
                 let value = p.beta.mul_elem(fc).mul_elem(ls.value) * power_heuristic(ls.pdf, pdf);
                 *nee = Some(NeeRay { ray: Ray::new(origin, ls.dir), dist: ls.dist * SHADOW_REACH, value });
@@ -167,8 +171,9 @@ pub fn shade_vertex(
         return false;
     };
     // A reflection the shading normal allows but the surface does not (below its face) ends
-    // the path: continuing it would leak light through the surface.
-    if m.kind() != MaterialKind::Dielectric && bs.dir.dot(ng) <= 0.0 {
+    // the path: continuing it would leak light through the surface; so does a refraction
+    // that stays above it. (The smooth dielectric turns about the face's normal.)
+    if !is_smooth_glass(m) && (bs.dir.dot(ng) <= 0.0) != bs.through {
         return false;
     }
     p.beta = p.beta.mul_elem(bs.weight);
@@ -190,11 +195,25 @@ pub fn shade_vertex(
 /// [`bsdf::eval`] about the shading normal, for directions above the surface's face only: light
 /// from below the face reaches no point of it, whatever the shading normal says.
 #[inline]
-pub fn eval_above(m: &FlatMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>, ng: V3<f32>) -> (V3<f32>, f32) {
+pub fn eval_above(m: &FlatMaterial, wo: V3<f32>, wi: V3<f32>, ns: V3<f32>, ng: V3<f32>, front: bool) -> (V3<f32>, f32) {
     if wi.dot(ng) <= 0.0 {
         return (V3::zero(), 0.0);
     }
-    bsdf::eval(m, wo, wi, ns)
+    bsdf::eval(m, wo, wi, ns, front)
+}
+
+/// A smooth dielectric: it reflects and refracts about the face's own normal.
+#[inline]
+fn is_smooth_glass(m: &FlatMaterial) -> bool {
+    m.kind() == MaterialKind::Dielectric && is_specular(m)
+}
+
+/// What a segment of length `t` inside material `m` lets through: exp(−σ_a t) per channel
+/// (rays' directions are unit vectors, so `t` is the length).
+#[inline]
+pub fn absorbed(m: &FlatMaterial, t: f32) -> V3<f32> {
+    let a = m.absorption;
+    V3::new((-a[0] * t).exp(), (-a[1] * t).exp(), (-a[2] * t).exp())
 }
 
 /// What reaches the end of a shadow ray towards a point or directional light, up to `tmax`:

@@ -12,6 +12,7 @@ use strahl_core::math::{Ray, V3};
 use strahl_core::primitives::{Hit, Primitives};
 use strahl_core::render::bsdf::{fresnel_dielectric, reflect, refract};
 use strahl_core::render::camera::primary_ray;
+use strahl_core::render::emitters::spot_factor;
 use strahl_core::render::environment;
 use strahl_core::render::limits::{SHADOW_PASSES, WHITTED_STACK};
 use strahl_core::render::spawn::spawn_origin;
@@ -97,7 +98,8 @@ fn light_at(light: &FlatLight, p: V3<f32>) -> (V3<f32>, f32, V3<f32>) {
         let to = v - p;
         let d2 = to.dot(to);
         let dist = d2.sqrt();
-        (to / dist, dist, i / d2)
+        let dir = to / dist;
+        (dir, dist, i / d2 * spot_factor(light, dir, dist))
     } else {
         (-v, f32::INFINITY, i)
     }

@@ -5,7 +5,8 @@
 //! and so do the defaults of every backend wgpu has. A binding has one element type, so a
 //! scene of sixteen typed arrays took sixteen bindings. Here every array that does not grow with
 //! the triangle count (spheres, cylinders, planes, shape references, materials, lights,
-//! emitters, the texture table and the environment) goes into one array of 16-byte words, each
+//! emitters, the texture table, the environment, and the rough dielectric's albedo table where
+//! a material needs it) goes into one array of 16-byte words, each
 //! array starting at a word the [`ObjectsHeader`] at the front names, and the shaders read an
 //! element word by word (`load_sphere` and the others in `shaders/modules/bindings.wgsl`). Every
 //! element of these arrays is a whole number of words, so each is written as its own bytes.
@@ -41,7 +42,11 @@ pub struct ObjectsHeader {
     pub sphere_count: u32,
     pub cylinder_count: u32,
     pub plane_count: u32,
-    pub _pad: [u32; 3],
+    /// The rough dielectric's albedo table (`render::dielectric::table`), f32 values from this
+    /// word on; present only where a material is rough glass (a constant array in the shader
+    /// took lavapipe 30 s to compile).
+    pub glass_table: u32,
+    pub _pad: [u32; 2],
 }
 
 /// Words the header takes.
@@ -57,7 +62,7 @@ macro_rules! slot {
 impl ObjectsHeader {
     /// The shaders' names of the header's fields and their 32-bit slots (shared values,
     /// [`crate::shared`]).
-    pub fn slots() -> [(&'static str, u32); 13] {
+    pub fn slots() -> [(&'static str, u32); 14] {
         [
             ("OBJ_SPHERES", slot!(spheres)),
             ("OBJ_CYLINDERS", slot!(cylinders)),
@@ -72,13 +77,15 @@ impl ObjectsHeader {
             ("OBJ_SPHERE_COUNT", slot!(sphere_count)),
             ("OBJ_CYLINDER_COUNT", slot!(cylinder_count)),
             ("OBJ_PLANE_COUNT", slot!(plane_count)),
+            ("OBJ_GLASS_TABLE", slot!(glass_table)),
         ]
     }
 }
 
 /// The arrays of the objects buffer as bytes, in the order they are laid out.
-fn parts(g: &FlatScene) -> [&[u8]; 9] {
+fn parts(g: &FlatScene) -> [&[u8]; 10] {
     use bytemuck::cast_slice as b;
+    let glass = g.materials.iter().any(strahl_core::render::bsdf::is_rough_glass);
     [
         b(&g.spheres),
         b(&g.cylinders),
@@ -89,6 +96,7 @@ fn parts(g: &FlatScene) -> [&[u8]; 9] {
         b(&g.emitters),
         b(&g.textures),
         b(&g.environment),
+        if glass { b(strahl_core::render::dielectric::table()) } else { &[] },
     ]
 }
 
@@ -104,7 +112,7 @@ pub fn objects_bytes(g: &FlatScene) -> u64 {
 pub fn pack_objects(g: &FlatScene) -> Vec<Word> {
     let mut words: Vec<Word> = Vec::with_capacity(objects_bytes(g) as usize / WORD);
     words.resize(HEADER_WORDS, [0; 4]);
-    let mut starts = [0u32; 9];
+    let mut starts = [0u32; 10];
     for (start, bytes) in starts.iter_mut().zip(parts(g)) {
         *start = words.len() as u32;
         for chunk in bytes.chunks(WORD) {
@@ -113,7 +121,8 @@ pub fn pack_objects(g: &FlatScene) -> Vec<Word> {
             words.push(bytemuck::cast(w));
         }
     }
-    let [spheres, cylinders, planes, shape_refs, materials, lights, emitters, textures, environment] = starts;
+    let [spheres, cylinders, planes, shape_refs, materials, lights, emitters, textures, environment, glass_table] =
+        starts;
     let header = ObjectsHeader {
         spheres,
         cylinders,
@@ -128,7 +137,8 @@ pub fn pack_objects(g: &FlatScene) -> Vec<Word> {
         sphere_count: g.spheres.len() as u32,
         cylinder_count: g.cylinders.len() as u32,
         plane_count: g.planes.len() as u32,
-        _pad: [0; 3],
+        glass_table,
+        _pad: [0; 2],
     };
     words[..HEADER_WORDS].copy_from_slice(bytemuck::cast_slice(bytemuck::bytes_of(&header)));
     words

@@ -41,6 +41,7 @@ pub const MODULES: &[(&str, &str)] = &[
     ("shaders/modules/environment.wgsl", include_str!("../shaders/modules/environment.wgsl")),
     ("shaders/modules/shade.wgsl", include_str!("../shaders/modules/shade.wgsl")),
     ("shaders/modules/sampler.wgsl", include_str!("../shaders/modules/sampler.wgsl")),
+    ("shaders/modules/dielectric.wgsl", include_str!("../shaders/modules/dielectric.wgsl")),
     ("shaders/modules/bsdf.wgsl", include_str!("../shaders/modules/bsdf.wgsl")),
     ("shaders/modules/emitters.wgsl", include_str!("../shaders/modules/emitters.wgsl")),
     ("shaders/modules/path.wgsl", include_str!("../shaders/modules/path.wgsl")),

@@ -54,7 +54,7 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
     use strahl_core::geometry::Part;
     use strahl_core::layout as g;
     use strahl_core::primitives::{PrimKind, PrimRef};
-    use strahl_core::render::{aov, bsdf, limits, microfacet, pbr, sampler, spawn};
+    use strahl_core::render::{aov, bsdf, dielectric, limits, microfacet, pbr, sampler, spawn};
     use strahl_core::scene::MaterialKind;
     use strahl_core::scene::texture::Wrap;
     let mut values = vec![
@@ -77,9 +77,11 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("MATERIAL_UNLIT", U32(g::MATERIAL_UNLIT)),
         ("MATERIAL_ALPHA_MASK", U32(g::MATERIAL_ALPHA_MASK)),
         ("MATERIAL_ALPHA_BLEND", U32(g::MATERIAL_ALPHA_BLEND)),
+        ("MATERIAL_SINGLE_SCATTERING", U32(g::MATERIAL_SINGLE_SCATTERING)),
         ("MATERIAL_ALPHA", U32(g::MATERIAL_ALPHA)),
         ("LIGHT_POINT", U32(g::LIGHT_POINT)),
         ("LIGHT_STAND_IN", U32(g::LIGHT_STAND_IN)),
+        ("LIGHT_SPOT", U32(g::LIGHT_SPOT)),
         ("FRAME_ACCUMULATE", U32(g::FRAME_ACCUMULATE)),
         ("VIEW_MODE_SHIFT", U32(g::VIEW_MODE_SHIFT)),
         ("VIEW_NORMALS", U32(g::VIEW_NORMALS)),
@@ -131,6 +133,10 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("GGX_COS_STEPS", U32(microfacet::COS_STEPS as u32)),
         ("GGX_ALBEDO", F32s(microfacet::table())),
         ("GGX_ALBEDO_LEN", U32(microfacet::table().len() as u32)),
+        ("DIELECTRIC_ROUGH_STEPS", U32(dielectric::ROUGH_STEPS as u32)),
+        ("DIELECTRIC_COS_STEPS", U32(dielectric::COS_STEPS as u32)),
+        ("DIELECTRIC_ETA_STEPS", U32(dielectric::ETA_STEPS as u32)),
+        ("DIELECTRIC_LN_ETA_MAX", F32(dielectric::ETA_MAX.ln())),
         ("MIN_ULP", F32(spawn::MIN_ULP)),
         ("PCG_MULT", U32(sampler::PCG_MULT)),
         ("PCG_INC", U32(sampler::PCG_INC)),

@@ -18,7 +18,9 @@
 //! scene through paths that hit them, with MIS weight 1. The emitter table itself is built with
 //! the rest of the flattened scene ([`super::flatten`]).
 
-use crate::layout::{FlatEmitter, FlatLight, FlatScene, FrameParams, LIGHT_POINT, LIGHT_STAND_IN, MATERIAL_TWO_SIDED};
+use crate::layout::{
+    FlatEmitter, FlatLight, FlatScene, FrameParams, LIGHT_POINT, LIGHT_SPOT, LIGHT_STAND_IN, MATERIAL_TWO_SIDED,
+};
 use crate::math::V3;
 use crate::math::lanes::{F, U};
 use crate::primitives::{PrimKind, PrimRef};
@@ -59,6 +61,26 @@ pub struct LightSample {
     pub pdf: f32,
 }
 
+/// What reaches a point `dist` away in direction −`dir` from point light `l` (`dir` points from
+/// the point to the light), as a share of its intensity: 1, or for a spot light the cone's
+/// falloff clamp(cos θ·scale + offset, 0, 1)² of `KHR_lights_punctual` (its recommended
+/// implementation), and within a `range` its window clamp(1 − (dist / range)⁴, 0, 1)².
+#[inline]
+pub fn spot_factor(l: &FlatLight, dir: V3<f32>, dist: f32) -> f32 {
+    let mut f = 1.0;
+    if l.flags & LIGHT_SPOT != 0 {
+        let cos = -dir.dot(V3::from_array(l.axis));
+        let a = (cos * l.cone_scale + l.cone_offset).clamp(0.0, 1.0);
+        f = a * a;
+    }
+    if l.range > 0.0 {
+        let r = dist / l.range;
+        let w = (1.0 - r * r * r * r).clamp(0.0, 1.0);
+        f *= w * w;
+    }
+    f
+}
+
 /// Point or directional light `l` seen from shading point `p`: its direction, distance and
 /// irradiance at normal incidence. None for a Whitted stand-in (path mode samples the
 /// emissive object itself) and for a point light at `p`.
@@ -74,7 +96,8 @@ pub fn delta_light(l: &FlatLight, p: V3<f32>) -> Option<LightSample> {
             return None;
         }
         let dist = d2.sqrt();
-        return Some(LightSample { dir: to / dist, dist, value: i / d2, pdf: 1.0 });
+        let dir = to / dist;
+        return Some(LightSample { dir, dist, value: i / d2 * spot_factor(l, dir, dist), pdf: 1.0 });
     }
     Some(LightSample { dir: -V3::from_array(l.vector), dist: f32::MAX, value: i, pdf: 1.0 })
 }

@@ -82,6 +82,7 @@ impl FlatScene {
                     ior: m.ior as f32,
                     roughness: m.roughness as f32,
                     flags: if m.two_sided { MATERIAL_TWO_SIDED } else { 0 }
+                        | if m.single_scattering { MATERIAL_SINGLE_SCATTERING } else { 0 }
                         | if m.unlit { MATERIAL_UNLIT } else { 0 }
                         | match m.alpha_mode {
                             AlphaMode::Opaque => 0,
@@ -100,26 +101,11 @@ impl FlatScene {
                         _ => 0.0,
                     },
                     _pad: [0; 2],
+                    absorption: rgb(m.absorption),
+                    transmission: m.transmission as f32,
                 })
                 .collect(),
-            lights: scene
-                .lights
-                .iter()
-                .map(|l| match l {
-                    Light::Point { position, intensity } => FlatLight {
-                        vector: position.cast::<f32>().to_array(),
-                        kind: LIGHT_POINT,
-                        intensity: rgb(*intensity),
-                        flags: 0,
-                    },
-                    Light::Directional { direction, intensity } => FlatLight {
-                        vector: direction.cast::<f32>().normalize().to_array(),
-                        kind: LIGHT_DIRECTIONAL,
-                        intensity: rgb(*intensity),
-                        flags: 0,
-                    },
-                })
-                .collect(),
+            lights: scene.lights.iter().map(flat_light).collect(),
             emitters: Vec::new(),
             emitter_norm: 0.0,
             textures: Vec::new(),
@@ -199,6 +185,7 @@ pub fn stand_in_lights(scene: &Scene) -> Vec<FlatLight> {
                 kind: LIGHT_POINT,
                 intensity: radiance.map(|c| (c * area) as f32),
                 flags: LIGHT_STAND_IN,
+                ..FlatLight::default()
             });
         }
     };
@@ -282,4 +269,37 @@ pub fn build_emitters(g: &FlatScene) -> (Vec<FlatEmitter>, f32) {
         })
         .collect();
     (emitters, (1.0 / total) as f32)
+}
+
+/// A scene light as the shaders read it.
+fn flat_light(l: &Light) -> FlatLight {
+    match l {
+        Light::Point { position, intensity } => FlatLight {
+            vector: position.cast::<f32>().to_array(),
+            kind: LIGHT_POINT,
+            intensity: rgb(*intensity),
+            ..FlatLight::default()
+        },
+        Light::Directional { direction, intensity } => FlatLight {
+            vector: direction.cast::<f32>().normalize().to_array(),
+            kind: LIGHT_DIRECTIONAL,
+            intensity: rgb(*intensity),
+            ..FlatLight::default()
+        },
+        &Light::Spot { position, direction, intensity, inner, outer, range } => {
+            // KHR_lights_punctual's recommended falloff, in its own constants.
+            let scale = 1.0 / (inner.cos() - outer.cos()).max(0.001);
+            FlatLight {
+                vector: position.cast::<f32>().to_array(),
+                kind: LIGHT_POINT,
+                intensity: rgb(intensity),
+                axis: direction.cast::<f32>().normalize().to_array(),
+                cone_scale: scale as f32,
+                cone_offset: (-outer.cos() * scale) as f32,
+                range: range as f32,
+                flags: LIGHT_SPOT,
+                ..FlatLight::default()
+            }
+        }
+    }
 }

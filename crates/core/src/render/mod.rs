@@ -10,6 +10,7 @@
 pub mod aov;
 pub mod bsdf;
 pub mod camera;
+pub mod dielectric;
 pub mod emitters;
 pub mod environment;
 pub mod flatten;

@@ -136,8 +136,8 @@ pub struct Material {
     pub ior: f64,
     /// Emitted radiance (emissive; added to the scattering of a pbr material).
     pub radiance: [f64; 3],
-    /// GGX α of a mirror (0: perfectly smooth); path mode only, Whitted treats every mirror
-    /// as smooth. A pbr material's perceptual roughness (glTF's `roughnessFactor`: α is its
+    /// GGX α of a mirror or a dielectric (0: perfectly smooth); path mode only, Whitted treats
+    /// every mirror and dielectric as smooth. A pbr material's perceptual roughness (glTF's `roughnessFactor`: α is its
     /// square).
     pub roughness: f64,
     /// pbr: metalness in [0, 1] (glTF's `metallicFactor`).
@@ -163,6 +163,15 @@ pub struct Material {
     /// Alpha factor (glTF's base colour alpha) and what alpha does.
     pub alpha: f64,
     pub alpha_mode: AlphaMode,
+    /// Absorption coefficient per unit length inside (dielectric, pbr with transmission:
+    /// Beer–Lambert, as `KHR_materials_volume`'s −ln(attenuationColor) / attenuationDistance);
+    /// path mode only.
+    pub absorption: [f64; 3],
+    /// pbr: `KHR_materials_transmission`'s factor in [0, 1].
+    pub transmission: f64,
+    /// A rough dielectric scatters once (Mitsuba's and pbrt's model), its lost energy not made
+    /// up ([`crate::render::dielectric`]).
+    pub single_scattering: bool,
 }
 
 impl Material {
@@ -185,6 +194,9 @@ impl Material {
             unlit: false,
             alpha: 1.0,
             alpha_mode: AlphaMode::Opaque,
+            absorption: [0.0; 3],
+            transmission: 0.0,
+            single_scattering: false,
         }
     }
 
@@ -204,6 +216,10 @@ pub enum Light {
     /// Light travelling along the unit vector `direction`, irradiance `intensity` on a surface
     /// facing it.
     Directional { direction: V3<f64>, intensity: [f64; 3] },
+    /// A point light within a cone about the unit vector `direction`: full intensity within
+    /// `inner` radians of it, none beyond `outer`, `KHR_lights_punctual`'s smooth falloff
+    /// between; `range` > 0 limits its reach (0: unlimited).
+    Spot { position: V3<f64>, direction: V3<f64>, intensity: [f64; 3], inner: f64, outer: f64, range: f64 },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

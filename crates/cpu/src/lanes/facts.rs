@@ -82,13 +82,16 @@ impl Facts {
                     && bilinear(m.color_texture)
                     && bilinear(m.metal_rough_texture);
                 let untextured = m.color_texture == 0 && m.metal_rough_texture == 0;
+                let clear = m.absorption == [0.0; 3];
                 let kind = match m.kind() {
                     MaterialKind::Diffuse | MaterialKind::Emissive => Some(Kind::Lambert),
                     MaterialKind::Mirror if untextured => {
                         Some(if m.roughness < MIN_ROUGHNESS { Kind::Mirror } else { Kind::Rough })
                     }
-                    MaterialKind::Dielectric if untextured => Some(Kind::Glass),
-                    MaterialKind::Pbr => Some(Kind::Pbr),
+                    // Rough glass, absorbing glass and pbr glass are shaded one path at a time
+                    // (the render's summary counts their vertices).
+                    MaterialKind::Dielectric if untextured && m.roughness < MIN_ROUGHNESS && clear => Some(Kind::Glass),
+                    MaterialKind::Pbr if m.transmission <= 0.0 && clear => Some(Kind::Pbr),
                     _ => None,
                 };
                 kind.filter(|_| plain).map(|kind| Material {

@@ -176,7 +176,7 @@ mod tests {
                 let want = pbr_lobes(&m[k], wo[k].dot(ns[k]));
                 assert_eq!(l.p_spec.0[k].to_bits(), want.p_spec.to_bits(), "lane {k}: p_spec");
                 assert_eq!(lane(l.diffuse, k), want.diffuse.to_array().map(f32::to_bits), "lane {k}: diffuse");
-                let (wf, wp) = bsdf::eval(&m[k], wo[k], wi[k], ns[k]);
+                let (wf, wp) = bsdf::eval(&m[k], wo[k], wi[k], ns[k], true);
                 assert_eq!(lane(f_cos, k), wf.to_array().map(f32::to_bits), "lane {k}: f cos");
                 assert_eq!(pdf.0[k].to_bits(), wp.to_bits(), "lane {k}: pdf");
                 let s = bsdf::sample(&m[k], wo[k], ns[k], true, [u[0].0[k], u[1].0[k], u[2].0[k]]);
@@ -214,7 +214,7 @@ mod tests {
             let (f_cos, pdf) = conductor_eval(alpha, f0, v(wo), v(wi), v(ns));
             let (ok, dir, weight, sp) = conductor_sample(alpha, f0, v(wo), v(ns), u[0], u[1]);
             for k in 0..N {
-                let (wf, wp) = bsdf::eval(&m[k], wo[k], wi[k], ns[k]);
+                let (wf, wp) = bsdf::eval(&m[k], wo[k], wi[k], ns[k], true);
                 assert_eq!(lane(f_cos, k), wf.to_array().map(f32::to_bits), "lane {k}: f cos");
                 assert_eq!(pdf.0[k].to_bits(), wp.to_bits(), "lane {k}: pdf");
                 let s = bsdf::sample(&m[k], wo[k], ns[k], true, [0.5, u[0].0[k], u[1].0[k]]);

@@ -147,6 +147,7 @@ const OBJ_ENV_DISTRIBUTION: u32 = #{OBJ_ENV_DISTRIBUTION};
 const OBJ_SPHERE_COUNT: u32 = #{OBJ_SPHERE_COUNT};
 const OBJ_CYLINDER_COUNT: u32 = #{OBJ_CYLINDER_COUNT};
 const OBJ_PLANE_COUNT: u32 = #{OBJ_PLANE_COUNT};
+const OBJ_GLASS_TABLE: u32 = #{OBJ_GLASS_TABLE};
 
 // Word `slot` of the objects header (OBJ_*: where an array starts, in 16-byte words, or a
 // count).
@@ -212,27 +213,39 @@ fn load_shape_ref(k: u32) -> u32 {
 #endif
 
 fn load_material(i: u32) -> Material {
-    let b = object_slot(OBJ_MATERIALS) + 5u * i;
+    let b = object_slot(OBJ_MATERIALS) + 6u * i;
     let w0 = objects[b];
     let w1 = objects[b + 1u];
     let w2 = objects[b + 2u];
     let w3 = objects[b + 3u];
     let w4 = objects[b + 4u];
+    let w5 = objects[b + 5u];
     return Material(
         f3(w0), w0.w,
         f3(w1), bitcast<f32>(w1.w),
         bitcast<f32>(w2.x), w2.y, w2.z, w2.w,
         bitcast<f32>(w3.x), w3.y, w3.z, bitcast<f32>(w3.w),
         bitcast<f32>(w4.x), bitcast<f32>(w4.y), w4.zw,
+        f3(w5), bitcast<f32>(w5.w),
     );
 }
 
 fn load_light(i: u32) -> Light {
-    let b = object_slot(OBJ_LIGHTS) + 2u * i;
+    let b = object_slot(OBJ_LIGHTS) + 4u * i;
     let w0 = objects[b];
     let w1 = objects[b + 1u];
-    return Light(f3(w0), w0.w, f3(w1), w1.w);
+    let w2 = objects[b + 2u];
+    let w3 = objects[b + 3u];
+    return Light(f3(w0), w0.w, f3(w1), w1.w, f3(w2), bitcast<f32>(w2.w), bitcast<f32>(w3.x), bitcast<f32>(w3.y), w3.zw);
 }
+
+#ifdef ROUGH_GLASS
+// Entry i of the rough dielectric's albedo table (render::dielectric::table).
+fn load_glass_table(i: u32) -> f32 {
+    let k = object_slot(OBJ_GLASS_TABLE) + (i >> 2u);
+    return bitcast<f32>(objects[k][i & 3u]);
+}
+#endif
 
 fn load_emitter(i: u32) -> Emitter {
     let w = objects[object_slot(OBJ_EMITTERS) + i];

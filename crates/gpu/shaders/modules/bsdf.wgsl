@@ -1,24 +1,31 @@
 // Scattering for the path tracer: twin of crates/core/src/render/bsdf.rs (Lambert, smooth and GGX-rough
-// conductors with Schlick's Fresnel, smooth dielectrics, glTF's metallic-roughness material). wo points away from the surface, ns
+// conductors with Schlick's Fresnel, smooth and (ROUGH_GLASS) rough dielectrics, glTF's metallic-roughness
+// material, mixed with a rough dielectric by its transmission). wo points away from the surface, ns
 // is the normal on wo's side; "weight" is f |cos| / pdf.
 #define_import_path strahl::bsdf
 
-#import strahl::types::{Material, MAT_MIRROR, MAT_DIELECTRIC, MAT_PBR}
+#import strahl::types::{Material, MAT_MIRROR, MAT_DIELECTRIC, MAT_PBR, MATERIAL_SINGLE_SCATTERING}
 #import strahl::shade::{fresnel_dielectric, reflect_dir, refract_dir}
 #import strahl::microfacet::{schlick, ggx_d, ggx_lambda, ggx_sample_visible}
 #ifdef PBR
 #import strahl::pbr::{pbr_lobes, pbr_fresnel}
 #endif
+#ifdef ROUGH_GLASS
+#import strahl::dielectric::{rough_eval, rough_sample}
+#endif
 
 const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.31830988618379067;
 const MIN_ROUGHNESS: f32 = #{MIN_ROUGHNESS};
+const MIN_PBR_ALPHA: f32 = #{MIN_PBR_ALPHA};
 
 struct BsdfSample {
     dir: vec3<f32>,
     weight: vec3<f32>,
     pdf: f32,
     specular: bool,
+    // Refracted through the surface.
+    through: bool,
     // false: the path ends here.
     valid: bool,
 }
@@ -29,7 +36,7 @@ struct BsdfEval {
 }
 
 fn is_specular(m: Material) -> bool {
-    return m.kind == MAT_DIELECTRIC || (m.kind == MAT_MIRROR && m.roughness < MIN_ROUGHNESS);
+    return (m.kind == MAT_DIELECTRIC || m.kind == MAT_MIRROR) && m.roughness < MIN_ROUGHNESS;
 }
 
 // Orthonormal basis around n (Duff et al., JCGT 2017): columns t, b.
@@ -84,7 +91,7 @@ fn pbr_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>) -> BsdfEva
 }
 
 fn pbr_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, u: vec3<f32>) -> BsdfSample {
-    let none = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false);
+    let none = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false, false);
     let cos_o = dot(wo, ns);
     if cos_o <= 0.0 {
         return none;
@@ -104,20 +111,112 @@ fn pbr_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, u: vec3<f32>) -> BsdfSa
     if !(ev.pdf > 0.0) {
         return none;
     }
-    return BsdfSample(dir, ev.f_cos / ev.pdf, ev.pdf, false, true);
+    return BsdfSample(dir, ev.f_cos / ev.pdf, ev.pdf, false, false, true);
 }
 #endif
 
-fn bsdf_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>) -> BsdfEval {
-#ifdef PBR
+#ifdef ROUGH_GLASS
+// The glass share of a pbr material (render::bsdf::glass_share).
+fn glass_share(m: Material) -> f32 {
+    return (1.0 - clamp(m.metallic, 0.0, 1.0)) * clamp(m.transmission, 0.0, 1.0);
+}
+
+fn glass_alpha(m: Material) -> f32 {
     if m.kind == MAT_PBR {
-        return pbr_eval(m, wo, wi, ns);
+        let r = clamp(m.roughness, 0.0, 1.0);
+        return max(r * r, MIN_PBR_ALPHA);
     }
+    return m.roughness;
+}
+
+fn glass_eta(m: Material, front: bool) -> f32 {
+    return select(1.0 / m.ior, m.ior, front);
+}
+
+// The reflection of the rough dielectric lobe (render::bsdf::glass_eval).
+fn glass_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>, front: bool) -> vec2<f32> {
+    if dot(wi, ns) <= 0.0 {
+        return vec2<f32>(0.0);
+    }
+    let compensate = (m.flags & MATERIAL_SINGLE_SCATTERING) == 0u;
+    return rough_eval(glass_alpha(m), glass_eta(m, front), to_local(wo, ns), to_local(wi, ns), compensate);
+}
+
+fn glass_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<f32>) -> BsdfSample {
+    let compensate = (m.flags & MATERIAL_SINGLE_SCATTERING) == 0u;
+    let s = rough_sample(glass_alpha(m), glass_eta(m, front), to_local(wo, ns), u, compensate);
+    if !s.valid {
+        return BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false, false);
+    }
+    let dir = normalize(to_world(s.wi, ns));
+    var weight = vec3<f32>(s.weight);
+    if s.through {
+        weight = m.color * s.weight;
+    }
+    return BsdfSample(dir, weight, s.pdf, s.through, s.through, true);
+}
+
+#ifdef PBR
+fn opaque_part(m: Material, t: f32) -> Material {
+    var o = m;
+    o.metallic = clamp(m.metallic, 0.0, 1.0) / (1.0 - t);
+    o.transmission = 0.0;
+    return o;
+}
+
+// render::bsdf::pbr_glass_eval.
+fn pbr_glass_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>, front: bool) -> BsdfEval {
+    let t = glass_share(m);
+    let g = glass_eval(m, wo, wi, ns, front);
+    if t >= 1.0 {
+        return BsdfEval(vec3<f32>(g.x), g.y);
+    }
+    let p = pbr_eval(opaque_part(m, t), wo, wi, ns);
+    return BsdfEval(p.f_cos * (1.0 - t) + vec3<f32>(g.x * t), p.pdf * (1.0 - t) + g.y * t);
+}
+
+// render::bsdf::pbr_glass_sample.
+fn pbr_glass_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<f32>) -> BsdfSample {
+    let t = glass_share(m);
+    var s: BsdfSample;
+    if u.x < t {
+        s = glass_sample(m, wo, ns, front, vec3<f32>(u.x / t, u.y, u.z));
+    } else {
+        s = pbr_sample(opaque_part(m, t), wo, ns, vec3<f32>((u.x - t) / (1.0 - t), u.y, u.z));
+    }
+    if !s.valid || s.through {
+        return s;
+    }
+    let ev = pbr_glass_eval(m, wo, s.dir, ns, front);
+    if !(ev.pdf > 0.0) {
+        return BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false, false);
+    }
+    return BsdfSample(s.dir, ev.f_cos / ev.pdf, ev.pdf, s.specular, false, true);
+}
 #endif
+#endif
+
+fn bsdf_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>, front: bool) -> BsdfEval {
     let cos_i = dot(wi, ns);
     if cos_i <= 0.0 {
         return BsdfEval(vec3<f32>(0.0), 0.0);
     }
+#ifdef PBR
+    if m.kind == MAT_PBR {
+#ifdef ROUGH_GLASS
+        if m.transmission > 0.0 {
+            return pbr_glass_eval(m, wo, wi, ns, front);
+        }
+#endif
+        return pbr_eval(m, wo, wi, ns);
+    }
+#endif
+#ifdef ROUGH_GLASS
+    if m.kind == MAT_DIELECTRIC {
+        let g = glass_eval(m, wo, wi, ns, front);
+        return BsdfEval(vec3<f32>(g.x), g.y);
+    }
+#endif
 #ifdef MIRROR
     if m.kind == MAT_MIRROR {
         let alpha = m.roughness;
@@ -141,10 +240,20 @@ fn bsdf_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>) -> BsdfEv
 }
 
 fn bsdf_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<f32>) -> BsdfSample {
-    let none = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false);
+    let none = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false, false);
 #ifdef PBR
     if m.kind == MAT_PBR {
+#ifdef ROUGH_GLASS
+        if m.transmission > 0.0 {
+            return pbr_glass_sample(m, wo, ns, front, u);
+        }
+#endif
         return pbr_sample(m, wo, ns, u);
+    }
+#endif
+#ifdef ROUGH_GLASS
+    if m.kind == MAT_DIELECTRIC && m.roughness >= MIN_ROUGHNESS {
+        return glass_sample(m, wo, ns, front, u);
     }
 #endif
 #ifdef DIELECTRIC
@@ -153,16 +262,16 @@ fn bsdf_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<f
         let eta = select(1.0 / m.ior, m.ior, front);
         let f = fresnel_dielectric(cos_i, eta);
         if u.x < f {
-            return BsdfSample(reflect_dir(-wo, ns), vec3<f32>(1.0), 0.0, true, true);
+            return BsdfSample(reflect_dir(-wo, ns), vec3<f32>(1.0), 0.0, true, false, true);
         }
-        return BsdfSample(refract_dir(-wo, ns, cos_i, 1.0 / eta), m.color / (eta * eta), 0.0, true, true);
+        return BsdfSample(refract_dir(-wo, ns, cos_i, 1.0 / eta), m.color / (eta * eta), 0.0, true, true, true);
     }
 #endif
 #ifdef MIRROR
     if m.kind == MAT_MIRROR {
         let cos_o = dot(wo, ns);
         if m.roughness < MIN_ROUGHNESS {
-            return BsdfSample(reflect_dir(-wo, ns), schlick(m.color, cos_o), 0.0, true, true);
+            return BsdfSample(reflect_dir(-wo, ns), schlick(m.color, cos_o), 0.0, true, false, true);
         }
         let alpha = m.roughness;
         let h = to_world(ggx_sample_visible(alpha, to_local(wo, ns), u.y, u.z), ns);
@@ -175,12 +284,12 @@ fn bsdf_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<f
         let li = ggx_lambda(alpha, cos_i);
         let weight = schlick(m.color, dot(wo, h)) * ((1.0 + lo) / (1.0 + lo + li));
         let pdf = ggx_d(alpha, dot(h, ns)) / ((1.0 + lo) * 4.0 * cos_o);
-        return BsdfSample(dir, weight, pdf, false, true);
+        return BsdfSample(dir, weight, pdf, false, false, true);
     }
 #endif
     if max(m.color.x, max(m.color.y, m.color.z)) <= 0.0 {
         return none;
     }
     let local = cosine_hemisphere(u.y, u.z);
-    return BsdfSample(normalize(to_world(local, ns)), m.color, local.z * INV_PI, false, true);
+    return BsdfSample(normalize(to_world(local, ns)), m.color, local.z * INV_PI, false, false, true);
 }

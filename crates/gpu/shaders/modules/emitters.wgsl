@@ -3,7 +3,7 @@
 // sphere; point and directional lights evaluated one by one at every vertex, not chosen).
 #define_import_path strahl::emitters
 
-#import strahl::types::{Emitter, Light, LIGHT_POINT, LIGHT_STAND_IN, KIND_TRIANGLE, INDEX_BITS, INDEX_MASK, MATERIAL_TWO_SIDED, F32_MAX}
+#import strahl::types::{Emitter, Light, LIGHT_POINT, LIGHT_STAND_IN, spot_factor, KIND_TRIANGLE, INDEX_BITS, INDEX_MASK, MATERIAL_TWO_SIDED, F32_MAX}
 #import strahl::bindings::{frame, load_emitter, load_light, load_material}
 #ifdef TRIANGLES
 #import strahl::traverse::scene_triangle
@@ -70,7 +70,8 @@ fn delta_light(l: Light, p: vec3<f32>) -> LightSample {
             return none;
         }
         let dist = sqrt(d2);
-        return LightSample(to / dist, dist, l.intensity / d2, 1.0, true);
+        let dir = to / dist;
+        return LightSample(dir, dist, l.intensity / d2 * spot_factor(l, dir, dist), 1.0, true);
     }
     return LightSample(-l.vector, F32_MAX, l.intensity, 1.0, true);
 }

@@ -111,11 +111,11 @@ fn delta_transmittance(o: vec3<f32>, d: vec3<f32>, tmax: f32) -> f32 {
 #endif
 
 // bsdf_eval about the shading normal for directions above the face only (render::path::eval_above).
-fn eval_above(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>, ng: vec3<f32>) -> BsdfEval {
+fn eval_above(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>, ng: vec3<f32>, front: bool) -> BsdfEval {
     if dot(wi, ng) <= 0.0 {
         return BsdfEval(vec3<f32>(0.0), 0.0);
     }
-    return bsdf_eval(m, wo, wi, ns);
+    return bsdf_eval(m, wo, wi, ns, front);
 }
 
 // The camera ray and random stream of sample s of pixel (x, y).
@@ -187,6 +187,12 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
     }
 #endif
     let front = dot(d, n) < 0.0;
+#ifdef ABSORPTION
+    if !front && any(m.absorption != vec3<f32>(0.0)) {
+        // The segment ran inside the material: Beer-Lambert (render::path::absorbed).
+        (*p).beta = (*p).beta * exp(-m.absorption * hit.t);
+    }
+#endif
     let fr = shading_frame(m, front, n, sf.normal, wo);
     let ng = fr.ng;
     let ns = fr.ns;
@@ -218,7 +224,7 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
         for (var i = 0u; i < frame.num_lights; i += 1u) {
             let dl = delta_light(load_light(i), x);
             if dl.valid {
-                let ev = eval_above(m, wo, dl.dir, ns, ng);
+                let ev = eval_above(m, wo, dl.dir, ns, ng, front);
                 if max3(ev.f_cos) > 0.0 {
                     let tr = delta_transmittance(so, dl.dir, dl.dist * SHADOW_REACH);
                     if tr > 0.0 {
@@ -230,7 +236,7 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
 #endif
         let ls = sample_light(x, u_light);
         if ls.valid {
-            let ev = eval_above(m, wo, ls.dir, ns, ng);
+            let ev = eval_above(m, wo, ls.dir, ns, ng, front);
             if max3(ev.f_cos) > 0.0 {
                 let value = (*p).beta * ev.f_cos * ls.value * power_heuristic(ls.pdf, ev.pdf);
                 *nee = NeeRay(so, ls.dist * SHADOW_REACH, ls.dir, 1u, value, 0u);
@@ -241,8 +247,10 @@ fn shade_with(p: ptr<function, PathState>, hit: Nearest, nee: ptr<function, NeeR
     if !bs.valid {
         return false;
     }
-    // A reflection below the surface's face ends the path (render::path: no leaks).
-    if m.kind != MAT_DIELECTRIC && dot(bs.dir, ng) <= 0.0 {
+    // A reflection below the surface's face, or a refraction above it, ends the path
+    // (render::path: no leaks); the smooth dielectric turns about the face's normal.
+    let smooth_glass = m.kind == MAT_DIELECTRIC && is_specular(m);
+    if !smooth_glass && (dot(bs.dir, ng) <= 0.0) != bs.through {
         return false;
     }
     (*p).beta = (*p).beta * bs.weight;

@@ -6,7 +6,7 @@
 // (materials let rays through by alpha).
 #define_import_path strahl::shade
 
-#import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, MAT_PBR, MATERIAL_ALPHA, LIGHT_POINT, F32_MAX}
+#import strahl::types::{Frame, Material, Light, MAT_MIRROR, MAT_DIELECTRIC, MAT_EMISSIVE, MAT_PBR, MATERIAL_ALPHA, LIGHT_POINT, F32_MAX, spot_factor}
 #import strahl::bindings::{frame, load_material, load_light}
 #import strahl::traverse::{nearest_hit, occluded, hit_normal, hit_material}
 #import strahl::spawn::spawn_origin
@@ -124,7 +124,7 @@ fn direct_light(o: vec3<f32>, d: vec3<f32>, t: f32, ng: vec3<f32>, ns: vec3<f32>
             let d2 = dot(to, to);
             dist = sqrt(d2);
             l = to / dist;
-            e = light.intensity / d2;
+            e = light.intensity / d2 * spot_factor(light, l, dist);
         } else {
             l = -light.vector;
             dist = F32_MAX;

@@ -107,6 +107,10 @@ struct Material {
     alpha: f32,
     alpha_cutoff: f32,
     pad: vec2<u32>,
+    // Absorption per unit length inside (Beer-Lambert, on the segment that ends on a back face).
+    absorption: vec3<f32>,
+    // pbr: KHR_materials_transmission's factor (render::bsdf::glass_share).
+    transmission: f32,
 }
 
 // A use of an image in `texels` (gpu_types::FlatTexture): the texture-coordinate transform
@@ -151,6 +155,12 @@ struct Light {
     kind: u32,
     intensity: vec3<f32>,
     flags: u32,
+    // A spot light's axis and cone (render::emitters::spot_factor), its range (0: unlimited).
+    axis: vec3<f32>,
+    cone_scale: f32,
+    cone_offset: f32,
+    range: f32,
+    pad: vec2<u32>,
 }
 
 struct Emitter {
@@ -206,10 +216,12 @@ const MAT_PBR: u32 = #{MAT_PBR};
 
 const LIGHT_POINT: u32 = #{LIGHT_POINT};
 const LIGHT_STAND_IN: u32 = #{LIGHT_STAND_IN};
+const LIGHT_SPOT: u32 = #{LIGHT_SPOT};
 const MATERIAL_TWO_SIDED: u32 = #{MATERIAL_TWO_SIDED};
 const MATERIAL_UNLIT: u32 = #{MATERIAL_UNLIT};
 const MATERIAL_ALPHA_MASK: u32 = #{MATERIAL_ALPHA_MASK};
 const MATERIAL_ALPHA_BLEND: u32 = #{MATERIAL_ALPHA_BLEND};
+const MATERIAL_SINGLE_SCATTERING: u32 = #{MATERIAL_SINGLE_SCATTERING};
 const MATERIAL_ALPHA: u32 = #{MATERIAL_ALPHA};
 
 const FRAME_ACCUMULATE: u32 = #{FRAME_ACCUMULATE};
@@ -236,3 +248,20 @@ const ENV_FLAG_UNIFORM: u32 = #{ENV_FLAG_UNIFORM};
 // The largest f32: stands for "no upper bound" (WGSL cannot spell infinity). Roots are
 // compared with `t < tmax`, so FLT_MAX and +inf reject exactly the same values.
 const F32_MAX: f32 = #{F32_MAX};
+
+// A point light's share of its intensity towards -dir at dist: a spot light's cone, a range's
+// window (render::emitters::spot_factor).
+fn spot_factor(l: Light, dir: vec3<f32>, dist: f32) -> f32 {
+    var f = 1.0;
+    if (l.flags & LIGHT_SPOT) != 0u {
+        let c = -dot(dir, l.axis);
+        let a = clamp(c * l.cone_scale + l.cone_offset, 0.0, 1.0);
+        f = a * a;
+    }
+    if l.range > 0.0 {
+        let r = dist / l.range;
+        let w = clamp(1.0 - r * r * r * r, 0.0, 1.0);
+        f *= w * w;
+    }
+    return f;
+}

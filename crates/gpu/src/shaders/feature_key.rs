@@ -7,6 +7,7 @@ use super::Program;
 use crate::split::{Split, SplitArray};
 use strahl_core::layout::{ENV_MAP, FlatScene, LIGHT_DIRECTIONAL, LIGHT_POINT};
 use strahl_core::primitives::Primitives;
+use strahl_core::render::bsdf::MIN_ROUGHNESS;
 use strahl_core::scene::{AlphaMode, Light, MaterialKind, Scene};
 
 bitflags::bitflags! {
@@ -41,6 +42,10 @@ bitflags::bitflags! {
         const PBR = 1 << 14;
         /// A material lets rays through by its alpha (glTF MASK or BLEND).
         const ALPHA = 1 << 15;
+        /// A rough dielectric, or a pbr material with transmission (`modules/dielectric.wgsl`).
+        const ROUGH_GLASS = 1 << 16;
+        /// A material absorbs inside (Beer–Lambert).
+        const ABSORPTION = 1 << 17;
     }
 }
 
@@ -58,6 +63,10 @@ struct Facts {
     directional_lights: bool,
     /// Each material's kind, and whether it is a light.
     materials: Vec<(MaterialKind, bool)>,
+    /// A rough dielectric or a pbr material with transmission.
+    rough_glass: bool,
+    /// A material that absorbs inside.
+    absorption: bool,
     alpha: bool,
     /// Per-triangle attributes.
     attributes: bool,
@@ -83,8 +92,13 @@ impl FeatureKey {
         .union(Self::SPLIT);
     /// Flags of the textures and the environment, which only the shading programs (render,
     /// path) read.
-    pub const ASSETS: FeatureKey =
-        Self::TEXTURES.union(Self::ENVIRONMENT).union(Self::ENV_MAP).union(Self::PBR).union(Self::ALPHA);
+    pub const ASSETS: FeatureKey = Self::TEXTURES
+        .union(Self::ENVIRONMENT)
+        .union(Self::ENV_MAP)
+        .union(Self::PBR)
+        .union(Self::ALPHA)
+        .union(Self::ROUGH_GLASS)
+        .union(Self::ABSORPTION);
     /// The materials that bend a ray without scattering it (the AOV program follows them).
     pub const SPECULAR: FeatureKey = Self::MIRROR.union(Self::DIELECTRIC);
     /// Every scene feature: the one shader that renders any scene.
@@ -106,10 +120,15 @@ impl FeatureKey {
             planes: !prims.planes.is_empty(),
             bounded: prims.bounded_count(),
             // Emissive objects light Whitted renders through point lights that stand in for them.
-            point_lights: scene.lights.iter().any(|l| matches!(l, Light::Point { .. }))
+            point_lights: scene.lights.iter().any(|l| matches!(l, Light::Point { .. } | Light::Spot { .. }))
                 || !stand_in_lights(scene).is_empty(),
             directional_lights: scene.lights.iter().any(|l| matches!(l, Light::Directional { .. })),
             materials: scene.materials.iter().map(|m| (m.kind, m.is_light())).collect(),
+            rough_glass: scene.materials.iter().any(|m| {
+                (m.kind == MaterialKind::Dielectric && m.roughness as f32 >= MIN_ROUGHNESS)
+                    || (m.kind == MaterialKind::Pbr && m.transmission as f32 > 0.0)
+            }),
+            absorption: scene.materials.iter().any(|m| m.absorption.iter().any(|&a| a as f32 != 0.0)),
             alpha: scene.materials.iter().any(|m| m.alpha_mode != AlphaMode::Opaque),
             attributes: needs_attributes(scene),
             environment: scene.environment.is_some(),
@@ -128,6 +147,8 @@ impl FeatureKey {
             point_lights: g.lights.iter().any(|l| l.kind == LIGHT_POINT),
             directional_lights: g.lights.iter().any(|l| l.kind == LIGHT_DIRECTIONAL),
             materials: g.materials.iter().map(|m| (m.kind(), m.is_light())).collect(),
+            rough_glass: g.materials.iter().any(strahl_core::render::bsdf::is_rough_glass),
+            absorption: g.materials.iter().any(|m| m.absorption != [0.0; 3]),
             alpha: g.alpha,
             attributes: !g.triangle_attrs.is_empty(),
             environment: !g.environment.is_empty(),
@@ -152,6 +173,8 @@ impl FeatureKey {
             (has(MaterialKind::Emissive) || f.materials.iter().any(|&(_, light)| light), Self::EMISSIVE),
             (has(MaterialKind::Pbr), Self::PBR),
             (f.alpha, Self::ALPHA),
+            (f.rough_glass, Self::ROUGH_GLASS),
+            (f.absorption, Self::ABSORPTION),
             (f.attributes, Self::TEXTURES),
             (f.environment, Self::ENVIRONMENT),
             (f.env_map, Self::ENV_MAP),

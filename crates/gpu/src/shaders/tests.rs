@@ -25,6 +25,8 @@ fn keys_to_validate() -> Vec<FeatureKey> {
         FeatureKey::ENVIRONMENT,
         FeatureKey::ENVIRONMENT | FeatureKey::ENV_MAP,
         FeatureKey::TEXTURES | FeatureKey::ENVIRONMENT,
+        FeatureKey::ROUGH_GLASS | FeatureKey::ABSORPTION,
+        FeatureKey::PBR | FeatureKey::ROUGH_GLASS | FeatureKey::ABSORPTION,
         FeatureKey::ALL & FeatureKey::ASSETS,
     ] {
         keys.extend(below_assets().filter(|&k| met.contains(k)).map(|k| k | assets));
@@ -346,10 +348,13 @@ fn shared_constants_reach_the_composed_shaders_exactly() {
         _ => None,
     });
     assert_eq!(stack_len.map(Shared::U32), shared.get("GPU_STACK").copied(), "the traversal stack's length");
-    // The table's length is its array's (checked with its values above); its row count
-    // folds into the constant expressions that use it.
-    let folded =
-        |n: &str| n.ends_with("WORKGROUP") || ["GPU_STACK", "GGX_ALBEDO_LEN", "GGX_ROUGHNESS_STEPS"].contains(&n);
+    // The table's length is its array's (checked with its values above); its row count, and
+    // the dielectric table's count of index ratios, fold into the constant expressions that
+    // use them.
+    let folded = |n: &str| {
+        n.ends_with("WORKGROUP")
+            || ["GPU_STACK", "GGX_ALBEDO_LEN", "GGX_ROUGHNESS_STEPS", "DIELECTRIC_ETA_STEPS"].contains(&n)
+    };
     let missing: Vec<_> = shared.keys().filter(|n| !seen.contains(**n) && !folded(n)).collect();
     assert!(missing.is_empty(), "not found as constants: {missing:?}");
 }
@@ -420,7 +425,9 @@ fn wgsl_struct_layouts_equal_the_rust_structs() {
                 normal_scale,
                 alpha,
                 alpha_cutoff,
-                _pad
+                _pad,
+                absorption,
+                transmission
             ]
         ),
         layout!("TextureInfo", FlatTexture, [width, height, offset, flags, linear, offset_uv, _pad]),
@@ -430,7 +437,7 @@ fn wgsl_struct_layouts_equal_the_rust_structs() {
             FlatEnvironment,
             [radiance, flags, rot_cos, rot_sin, texture, select_prob, width, height, _pad, sh]
         ),
-        layout!("Light", FlatLight, [vector, kind, intensity, flags]),
+        layout!("Light", FlatLight, [vector, kind, intensity, flags, axis, cone_scale, cone_offset, range, _pad]),
         layout!("Emitter", FlatEmitter, [source, kind, cdf, pdf]),
         layout!("QueryRay", GpuQueryRay, [origin, tmin, dir, tmax]),
         layout!("QueryHit", GpuQueryHit, [normal, t, object, face, prim_ref, flags]),

@@ -71,6 +71,9 @@ pub(super) struct MaterialDef {
     pub(super) two_sided: Option<Spanned<bool>>,
     pub(super) texture: Option<Spanned<String>>,
     pub(super) radiance_texture: Option<Spanned<String>>,
+    pub(super) absorption: Option<SVec>,
+    pub(super) transmission: Option<Spanned<f64>>,
+    pub(super) single_scattering: Option<Spanned<bool>>,
 }
 
 /// Every key any object type has; which belong to which type is checked in `object`.
@@ -131,6 +134,9 @@ pub(super) struct LightDef {
     pub(super) position: Option<SVec>,
     pub(super) direction: Option<SVec>,
     pub(super) intensity: Option<SVec>,
+    pub(super) inner_angle: Option<Spanned<f64>>,
+    pub(super) outer_angle: Option<Spanned<f64>>,
+    pub(super) range: Option<Spanned<f64>>,
 }
 
 /// A mesh's `scale`: one number for all axes, or `[x, y, z]`.
@@ -168,8 +174,11 @@ impl<'de> Deserialize<'de> for ScaleDef {
     }
 }
 
-pub(super) const LIGHT_TYPES: [(&str, &[&str]); 2] =
-    [("point", &["position", "intensity"]), ("directional", &["direction", "intensity"])];
+pub(super) const LIGHT_TYPES: [(&str, &[&str]); 3] = [
+    ("point", &["position", "intensity"]),
+    ("directional", &["direction", "intensity"]),
+    ("spot", &["position", "direction", "intensity", "inner_angle", "outer_angle", "range"]),
+];
 
 pub(super) const OBJECT_TYPES: [(&str, &[&str]); 7] = [
     ("sphere", &["center", "radius", "material"]),

@@ -170,6 +170,57 @@ mod tests {
         assert!(err(&src).starts_with("t.toml:11:8: materials[0].type: unknown material type"));
     }
 
+    /// Glass and spot lights: values read, and bad ones named.
+    #[test]
+    fn glass_and_spot_keys() {
+        let src = format!(
+            "{HEAD}[[materials]]\nname = \"g\"\ntype = \"dielectric\"\nroughness = 0.3\nabsorption = [1, 0.5, 0]\n\
+             single_scattering = true\n[[materials]]\nname = \"p\"\ntype = \"pbr\"\ntransmission = 0.25\nior = 1.4\n\
+             [[lights]]\ntype = \"spot\"\nposition = [0, 2, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\n\
+             inner_angle = 10\nouter_angle = 30\nrange = 5\n"
+        );
+        let s = parse_str(&src).unwrap();
+        let (g, p) = (&s.materials[0], &s.materials[1]);
+        assert_eq!((g.roughness, g.absorption, g.single_scattering), (0.3, [1.0, 0.5, 0.0], true));
+        assert_eq!((p.transmission, p.ior, p.single_scattering), (0.25, 1.4, false));
+        let Light::Spot { inner, outer, range, direction, .. } = s.lights[0] else { panic!("{:?}", s.lights[0]) };
+        assert_eq!((inner, outer, range), (10f64.to_radians(), 30f64.to_radians(), 5.0));
+        assert_eq!(direction, V3::new(0.0, -1.0, 0.0));
+        let material = |body: &str| err(&format!("{HEAD}[[materials]]\nname = \"m\"\n{body}\n"));
+        assert!(
+            material("type = \"dielectric\"\nabsorption = [1, -1, 0]")
+                .contains("materials[0].absorption[1]: must be >= 0")
+        );
+        assert!(
+            material("type = \"pbr\"\ntransmission = 1.5")
+                .contains("materials[0].transmission: must be in [0, 1], got 1.5")
+        );
+        assert!(material("type = \"dielectric\"\nroughness = 2").contains("materials[0].roughness: must be in [0, 1]"));
+        assert!(
+            material("type = \"dielectric\"\ntransmission = 1")
+                .contains("materials[0].transmission: not a field of a dielectric")
+        );
+        assert!(
+            material("type = \"diffuse\"\nabsorption = [1, 1, 1]")
+                .contains("materials[0].absorption: not a field of a diffuse")
+        );
+        let spot = |extra: &str| {
+            err(&format!(
+                "{HEAD}[[lights]]\ntype = \"spot\"\nposition = [0, 2, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\n{extra}\n"
+            ))
+        };
+        assert!(
+            spot("inner_angle = 30\nouter_angle = 20")
+                .contains("lights[0].inner_angle: must be less than outer_angle (20), got 30")
+        );
+        assert!(spot("outer_angle = 95").contains("lights[0].outer_angle: must be in [0, 90] degrees, got 95"));
+        assert!(spot("range = 0").contains("lights[0].range: must be > 0, got 0"));
+        let e = err(&format!(
+            "{HEAD}[[lights]]\ntype = \"point\"\nposition = [0, 2, 0]\nintensity = [1, 1, 1]\nrange = 3\n"
+        ));
+        assert!(e.contains("lights[0].range: not a field of a point light"), "{e}");
+    }
+
     #[test]
     fn field_not_of_the_type() {
         let e =

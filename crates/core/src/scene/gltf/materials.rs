@@ -16,22 +16,23 @@ impl Reader<'_> {
             let color = [base[0], base[1], base[2]].map(|c| (c as f64).clamp(0.0, 1.0));
             let strength = m.emissive_strength().unwrap_or(1.0) as f64;
             let radiance = m.emissive_factor().map(|c| (c as f64 * strength).max(0.0));
-            let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
-            let kind = if m.unlit() {
-                MaterialKind::Emissive
-            } else if transmission >= 0.5 {
-                MaterialKind::Dielectric
-            } else {
-                MaterialKind::Pbr
-            };
-            let mut ior = 1.0;
-            if kind == MaterialKind::Dielectric {
-                ior = m.ior().unwrap_or(1.5) as f64;
-                if !(ior >= 1.0 && ior.is_finite()) {
-                    self.warn(format!("{at}: KHR_materials_ior ior {ior} is not a refractive index: 1.5 is used"));
-                    ior = 1.5;
-                }
+            let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor() as f64).clamp(0.0, 1.0);
+            if m.transmission().is_some_and(|t| t.transmission_texture().is_some()) {
+                self.warn(format!(
+                    "{at}: KHR_materials_transmission.transmissionTexture is not read: transmissionFactor {transmission} \
+                     holds everywhere"
+                ));
             }
+            let kind = if m.unlit() { MaterialKind::Emissive } else { MaterialKind::Pbr };
+            let mut ior = m.ior().unwrap_or(1.5) as f64;
+            if !(ior >= 1.0 && ior.is_finite()) {
+                self.warn(format!("{at}: KHR_materials_ior ior {ior} is not a refractive index: 1.5 is used"));
+                ior = 1.5;
+            }
+            let absorption = match m.volume() {
+                Some(v) if transmission > 0.0 => self.absorption(&v, &at),
+                _ => [0.0; 3],
+            };
             let mut tex = |this: &mut Self, info: Option<TextureUse>, what: &str, data: bool| -> Res<Option<u32>> {
                 match info {
                     Some(u) => this.texture(&u, &format!("{at}.{what}"), data, &mut textures),
@@ -54,7 +55,17 @@ impl Reader<'_> {
                 gltf::material::AlphaMode::Blend => AlphaMode::Blend,
             };
             let alpha = (base[3] as f64).clamp(0.0, 1.0);
-            let mut out = Material { name, kind, color, ior, alpha, alpha_mode, ..Material::default_grey() };
+            let mut out = Material {
+                name,
+                kind,
+                color,
+                ior,
+                alpha,
+                alpha_mode,
+                transmission,
+                absorption,
+                ..Material::default_grey()
+            };
             match kind {
                 MaterialKind::Emissive => {
                     // KHR_materials_unlit: the base colour shown as it is, from both sides.
@@ -65,8 +76,9 @@ impl Reader<'_> {
                     out.color_texture = color_texture;
                     out.two_sided = true;
                     out.unlit = true;
+                    out.transmission = 0.0;
+                    out.absorption = [0.0; 3];
                 }
-                MaterialKind::Dielectric => out.color_texture = color_texture,
                 _ => {
                     out.color_texture = color_texture;
                     out.metallic = (pbr.metallic_factor() as f64).clamp(0.0, 1.0);
@@ -93,6 +105,23 @@ impl Reader<'_> {
         }
         self.out.materials.push(Material::default_grey());
         Ok(())
+    }
+
+    /// `KHR_materials_volume` as an absorption coefficient per unit length: −ln(attenuationColor)
+    /// / attenuationDistance (world units, as the extension states). A thin-walled material
+    /// (thicknessFactor 0) has no volume; the thickness texture is not needed (strahl measures
+    /// the path inside) and is not read.
+    fn absorption(&mut self, v: &gltf::material::Volume, at: &str) -> [f64; 3] {
+        let distance = v.attenuation_distance() as f64;
+        if v.thickness_factor() <= 0.0 || !(distance > 0.0) || distance.is_infinite() {
+            return [0.0; 3];
+        }
+        let c = v.attenuation_color();
+        if c.iter().any(|&x| !(0.0..=1.0).contains(&x)) {
+            self.warn(format!("{at}: KHR_materials_volume.attenuationColor {c:?} is clamped to [0, 1]"));
+        }
+        // A channel that keeps nothing absorbs within a millionth of the distance.
+        c.map(|x| -((x as f64).clamp(1e-6, 1.0)).ln() / distance)
     }
 
     /// The local index of the texture use `u` (an image with its sampler, texture coordinates

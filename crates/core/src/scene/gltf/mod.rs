@@ -47,12 +47,13 @@ pub const MAX_BUFFER_BYTES: u64 = 2 << 30;
 /// Deepest node hierarchy followed.
 const MAX_NODE_DEPTH: usize = 1024;
 /// The extensions whose contents are read (the crate refuses files that require others).
-pub const SUPPORTED_EXTENSIONS: [&str; 7] = [
+pub const SUPPORTED_EXTENSIONS: [&str; 8] = [
     "KHR_mesh_quantization",
     "KHR_lights_punctual",
     "KHR_materials_emissive_strength",
     "KHR_materials_transmission",
     "KHR_materials_ior",
+    "KHR_materials_volume",
     "KHR_materials_unlit",
     "KHR_texture_transform",
 ];

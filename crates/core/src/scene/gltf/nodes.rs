@@ -258,8 +258,30 @@ impl Reader<'_> {
                         return Err(format!("nodes[{node}]: the transform of {at} is degenerate"));
                     }
                 }
-                gltf::khr_lights_punctual::Kind::Spot { .. } => {
-                    self.warn(format!("{at}: spot lights are not read: skipped"));
+                gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => {
+                    let position = space.point(DVec3::ZERO);
+                    let d = space.point(DVec3::new(0.0, 0.0, -1.0)) - position;
+                    if !(d.length() > 0.0 && d.is_finite()) {
+                        return Err(format!("nodes[{node}]: the transform of {at} is degenerate"));
+                    }
+                    // The extension's bounds: 0 <= inner < outer <= pi/2.
+                    let outer = (outer_cone_angle as f64).clamp(0.0, std::f64::consts::FRAC_PI_2);
+                    let inner = (inner_cone_angle as f64).clamp(0.0, outer);
+                    if (inner, outer) != (inner_cone_angle as f64, outer_cone_angle as f64) {
+                        self.warn(format!(
+                            "{at}: spot cone angles {inner_cone_angle} and {outer_cone_angle} are outside \
+                             0 <= inner <= outer <= pi/2: {inner} and {outer} are used"
+                        ));
+                    }
+                    let range = light.range().map_or(0.0, |r| r as f64).max(0.0);
+                    self.out.lights.push(Light::Spot {
+                        position,
+                        direction: d.normalize(),
+                        intensity,
+                        inner,
+                        outer,
+                        range,
+                    });
                 }
             }
         }

@@ -134,13 +134,16 @@ impl Cx<'_> {
         };
         // Keys only some kinds of material take, in the order they are checked.
         use MaterialKind::{Dielectric, Emissive, Mirror, Pbr};
-        let own_keys: [(&[MaterialKind], &str, _); 6] = [
-            (&[Dielectric], "ior", d.ior.as_ref().map(|v| v.span())),
+        let own_keys: [(&[MaterialKind], &str, _); 9] = [
+            (&[Dielectric, Pbr], "ior", d.ior.as_ref().map(|v| v.span())),
             (&[Emissive, Pbr], "radiance", d.radiance.as_ref().map(|v| v.span())),
             (&[Emissive, Pbr], "two_sided", d.two_sided.as_ref().map(|v| v.span())),
-            (&[Mirror, Pbr], "roughness", d.roughness.as_ref().map(|v| v.span())),
+            (&[Mirror, Pbr, Dielectric], "roughness", d.roughness.as_ref().map(|v| v.span())),
             (&[Pbr], "metallic", d.metallic.as_ref().map(|v| v.span())),
             (&[Emissive, Pbr], "radiance_texture", d.radiance_texture.as_ref().map(|v| v.span())),
+            (&[Dielectric, Pbr], "absorption", d.absorption.as_ref().map(|v| v.span())),
+            (&[Pbr], "transmission", d.transmission.as_ref().map(|v| v.span())),
+            (&[Dielectric, Pbr], "single_scattering", d.single_scattering.as_ref().map(|v| v.span())),
         ];
         for (owners, key, span) in own_keys {
             if !owners.contains(&kind)
@@ -170,7 +173,7 @@ impl Cx<'_> {
             None => default_color,
         };
         let mut ior = 1.0;
-        if kind == MaterialKind::Dielectric {
+        if matches!(kind, Dielectric | Pbr) {
             ior = 1.5;
             if let Some(v) = &d.ior {
                 ior = self.number(v, &format!("{field}.ior"))?;
@@ -228,6 +231,7 @@ impl Cx<'_> {
             }
         }
         let two_sided = d.two_sided.as_ref().is_some_and(|v| *v.get_ref());
+        let (absorption, transmission) = self.glass_keys(d, field)?;
         Ok(Material {
             name: name.clone(),
             kind,
@@ -239,7 +243,31 @@ impl Cx<'_> {
             two_sided,
             color_texture,
             radiance_texture,
+            absorption,
+            transmission,
+            single_scattering: d.single_scattering.as_ref().is_some_and(|v| *v.get_ref()),
             ..Material::default_grey()
         })
+    }
+
+    /// A material's glass keys: `absorption` per unit length (any size: a path keeps
+    /// exp(−absorption × distance)) and a pbr material's `transmission` in [0, 1].
+    fn glass_keys(&self, d: &MaterialDef, field: &str) -> Res<([f64; 3], f64)> {
+        let absorption = match &d.absorption {
+            Some(a) => self.rgb(a, &format!("{field}.absorption"), None)?,
+            None => [0.0; 3],
+        };
+        let mut transmission = 0.0;
+        if let Some(v) = &d.transmission {
+            transmission = self.number(v, &format!("{field}.transmission"))?;
+            if !(0.0..=1.0).contains(&transmission) {
+                return Err(self.at(
+                    v.span(),
+                    format!("{field}.transmission"),
+                    format!("must be in [0, 1], got {transmission}"),
+                ));
+            }
+        }
+        Ok((absorption, transmission))
     }
 }

@@ -281,7 +281,60 @@ impl Cx<'_> {
         let intensity = |this: &Self| -> Res<[f64; 3]> {
             this.rgb(&require(&d.intensity, "intensity")?, &format!("{field}.intensity"), None)
         };
+        if tname != "spot" {
+            for (key, span) in [
+                ("inner_angle", d.inner_angle.as_ref().map(|v| v.span())),
+                ("outer_angle", d.outer_angle.as_ref().map(|v| v.span())),
+                ("range", d.range.as_ref().map(|v| v.span())),
+            ] {
+                if let Some(span) = span {
+                    return Err(not_a_field(key, span));
+                }
+            }
+        }
         match tname {
+            "spot" => {
+                let position = self.vec3(&require(&d.position, "position")?, &format!("{field}.position"))?;
+                let direction = self.direction(&require(&d.direction, "direction")?, &format!("{field}.direction"))?;
+                // Half-angles of the cone in degrees, KHR_lights_punctual's defaults.
+                let angle = |v: &Option<Spanned<f64>>, key: &str, default: f64| -> Res<f64> {
+                    let Some(v) = v else { return Ok(default) };
+                    let x = self.number(v, &format!("{field}.{key}"))?;
+                    if !(0.0..=90.0).contains(&x) {
+                        return Err(self.at(
+                            v.span(),
+                            format!("{field}.{key}"),
+                            format!("must be in [0, 90] degrees, got {x}"),
+                        ));
+                    }
+                    Ok(x)
+                };
+                let inner = angle(&d.inner_angle, "inner_angle", 0.0)?;
+                let outer = angle(&d.outer_angle, "outer_angle", 45.0)?;
+                if inner >= outer {
+                    let span = d.inner_angle.as_ref().map_or(l.span(), |v| v.span());
+                    return Err(self.at(
+                        span,
+                        format!("{field}.inner_angle"),
+                        format!("must be less than outer_angle ({outer}), got {inner}"),
+                    ));
+                }
+                let mut range = 0.0;
+                if let Some(v) = &d.range {
+                    range = self.number(v, &format!("{field}.range"))?;
+                    if !(range > 0.0) {
+                        return Err(self.at(v.span(), format!("{field}.range"), format!("must be > 0, got {range}")));
+                    }
+                }
+                Ok(Light::Spot {
+                    position,
+                    direction,
+                    intensity: intensity(self)?,
+                    inner: inner.to_radians(),
+                    outer: outer.to_radians(),
+                    range,
+                })
+            }
             "point" => {
                 if let Some(v) = &d.direction {
                     return Err(not_a_field("direction", v.span()));
@@ -299,7 +352,7 @@ impl Cx<'_> {
             _ => Err(self.at(
                 d.kind.span(),
                 format!("{field}.type"),
-                format!("unknown light type \"{tname}\"; known: point, directional"),
+                format!("unknown light type \"{tname}\"; known: point, directional, spot"),
             )),
         }
     }
