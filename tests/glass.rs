@@ -214,13 +214,7 @@ fn gpu_and_cpu_trace_the_same_glass() {
     let prep = Arc::new(Prepared::new(Scene::load(&path).unwrap()));
     let frame = prep.frame(64, 48);
     let (c, g) = (cpu_image(&prep, frame, 4), gpu_image(&ctx, &prep, frame, 4));
-    let close = c
-        .pixels
-        .iter()
-        .zip(&g.pixels)
-        .filter(|(a, b)| a.iter().zip(b.iter()).all(|(x, y)| (x - y).abs() <= 1e-3 * (1.0 + x.abs())))
-        .count();
-    let frac = close as f64 / c.pixels.len() as f64;
+    let frac = common::agreeing_fraction(&c, &g);
     eprintln!("glass.toml: pixels equal to 1e-3: {:.2} %", 100.0 * frac);
     assert!(frac > 0.95, "only {:.2} % of pixels agree", 100.0 * frac);
 }

@@ -632,3 +632,43 @@ fn transmission_volume_and_spot_lights_are_read() {
     let path = write_gltf(dir.path(), "thin.gltf", &quad(), &thin, &[], None);
     assert_eq!(Scene::load(&path).unwrap().materials[0].absorption, [0.0; 3]);
 }
+
+/// `KHR_materials_clearcoat`, `_sheen` and `_specular` become the pbr material's layers and
+/// dielectric reflectance, their textures are named as not read, none of them is named as an
+/// ignored extension any more, and a file may require them.
+#[test]
+fn clearcoat_sheen_and_specular_are_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let layered = r#"{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1], "metallicFactor": 0, "roughnessFactor": 0.4},
+        "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 0.75, "clearcoatRoughnessFactor": 0.2, "clearcoatTexture": {"index": 0}},
+        "KHR_materials_sheen": {"sheenColorFactor": [0.9, 0.4, 0.1], "sheenRoughnessFactor": 0.6},
+        "KHR_materials_specular": {"specularFactor": 0.5, "specularColorFactor": [1, 0.5, 2]},
+        "KHR_materials_ior": {"ior": 2.0}}}"#;
+    let path = write_gltf(dir.path(), "layered.gltf", &quad(), layered, &[], None);
+    let json = std::fs::read_to_string(&path).unwrap().replace(
+        r#""KHR_texture_transform"]"#,
+        r#""KHR_texture_transform", "KHR_materials_clearcoat", "KHR_materials_sheen", "KHR_materials_specular"],
+            "extensionsRequired": ["KHR_materials_clearcoat", "KHR_materials_sheen"]"#,
+    );
+    std::fs::write(&path, json).unwrap();
+    let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let m = &scene.materials[0];
+    assert!((m.clearcoat - 0.75).abs() < 1e-6 && (m.clearcoat_roughness - 0.2).abs() < 1e-6, "{m:?}");
+    assert!((m.sheen_roughness - 0.6).abs() < 1e-6, "{m:?}");
+    for (got, want) in m.sheen_color.iter().zip([0.9, 0.4, 0.1]) {
+        assert!((got - want).abs() < 1e-6, "{m:?}");
+    }
+    assert!((m.specular - 0.5).abs() < 1e-6 && m.specular_color == [1.0, 0.5, 2.0], "{m:?}");
+    let warnings = scene.warnings.join("\n");
+    assert!(warnings.contains("KHR_materials_clearcoat.clearcoatTexture is not read"), "{warnings}");
+    assert!(!warnings.contains("ignored"), "{warnings}");
+    // F0 = ((2 − 1)/(2 + 1))² = 1/9, tinted (the blue channel's product clamped to 1 before the
+    // factor) and scaled by 0.5; F90 = 0.5.
+    let prep = strahl_core::render::Prepared::new(scene);
+    let f = &prep.flat.materials[0];
+    let f0 = 1.0f32 / 9.0;
+    for (got, want) in f.spec_at_normal.iter().zip([f0 * 0.5, f0 * 0.25, f0 * 2.0 * 0.5]) {
+        assert!((got - want).abs() < 1e-6, "{:?}", f.spec_at_normal);
+    }
+    assert_eq!(f.spec_at_grazing, 0.5);
+}

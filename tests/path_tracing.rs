@@ -197,15 +197,8 @@ fn gpu_and_cpu_draw_the_same_paths_for_the_same_samples() {
     let spp = 8;
     let c = cpu_image(&prep, frame, spp);
     let g = gpu_image(&ctx, &prep, frame, spp);
-    // Same pixel, same sample index, same seed: the same random numbers, so the same paths
-    // except where f32 rounding differs at a branch (a Fresnel or roulette draw on the edge).
-    let close = c
-        .pixels
-        .iter()
-        .zip(&g.pixels)
-        .filter(|(a, b)| a.iter().zip(b.iter()).all(|(x, y)| (x - y).abs() <= 1e-3 * (1.0 + x.abs())))
-        .count();
-    let frac = close as f64 / c.pixels.len() as f64;
+    // Same pixel, same sample index, same seed: the same random numbers, so the same paths.
+    let frac = common::agreeing_fraction(&c, &g);
     eprintln!("pixels equal to 1e-3: {:.2} %", 100.0 * frac);
     assert!(frac > 0.95, "only {:.2} % of pixels agree", 100.0 * frac);
 }

@@ -157,6 +157,19 @@ pub fn shared_edge_rays(n: usize, seed: u64) -> Vec<strahl_core::query::RayQuery
         .collect()
 }
 
+/// The share of pixels of two images rendered from the same samples (the GPU's and the
+/// CPU's) whose channels agree to 1e-3·(1 + |x|): the same paths except where f32 rounding
+/// flips a branch (a Fresnel or roulette draw on the edge).
+pub fn agreeing_fraction(a: &strahl_core::image::Image, b: &strahl_core::image::Image) -> f64 {
+    let close = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .filter(|(p, q)| p.iter().zip(q.iter()).all(|(x, y)| (x - y).abs() <= 1e-3 * (1.0 + x.abs())))
+        .count();
+    close as f64 / a.pixels.len() as f64
+}
+
 /// Mean over the given pixels (channels averaged) and its standard error from their spread
 /// (pixels are independent estimates).
 pub fn mean_and_error(values: &[f64]) -> (f64, f64) {

@@ -59,7 +59,7 @@ pub struct FlatTriangle {
 }
 
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct FlatMaterial {
     pub color: [f32; 3],
     /// [`crate::scene::MaterialKind`] as u32.
@@ -86,15 +86,47 @@ pub struct FlatMaterial {
     pub alpha: f32,
     /// [`MATERIAL_ALPHA_MASK`]: alpha below this lets rays through.
     pub alpha_cutoff: f32,
-    pub _pad: [u32; 2],
+    /// pbr: `KHR_materials_clearcoat`'s factor (the coat layer of [`crate::render::layers`]).
+    pub clearcoat: f32,
+    /// pbr: the clear coat's perceptual roughness (α = its square).
+    pub clearcoat_roughness: f32,
     /// Absorption coefficient per unit length inside the material (Beer–Lambert), applied to
     /// the segment a path ends on the back face ([`crate::render::bsdf`]); 0: clear.
     pub absorption: [f32; 3],
     /// pbr: `KHR_materials_transmission`'s factor ([`crate::render::bsdf::glass_share`]).
     pub transmission: f32,
+    /// pbr: the dielectric's reflectance at normal incidence, per channel: ((η − 1)/(η + 1))²
+    /// with `KHR_materials_ior`'s η, times `KHR_materials_specular`'s colour (at most 1) and
+    /// factor; 0.04 by default.
+    pub spec_at_normal: [f32; 3],
+    /// pbr: its reflectance at grazing incidence (`KHR_materials_specular`'s factor; 1 by
+    /// default).
+    pub spec_at_grazing: f32,
+    /// pbr: `KHR_materials_sheen`'s colour (the sheen layer of [`crate::render::layers`]);
+    /// black: no sheen.
+    pub sheen_color: [f32; 3],
+    /// pbr: the sheen's roughness (its α is the square).
+    pub sheen_roughness: f32,
 }
 
+impl Default for FlatMaterial {
+    /// Every field 0 except the dielectric's default reflectance (F0 0.04, F90 1).
+    fn default() -> Self {
+        FlatMaterial { spec_at_normal: [DEFAULT_F0; 3], spec_at_grazing: 1.0, ..Zeroable::zeroed() }
+    }
+}
+
+/// The dielectric's reflectance at normal incidence without `KHR_materials_ior` and
+/// `KHR_materials_specular`: index of refraction 1.5.
+pub const DEFAULT_F0: f32 = 0.04;
+
 impl FlatMaterial {
+    /// Whether a pbr material has a layer above its base (a clear coat or sheen), which the
+    /// CPU's lanes leave to the one-path code.
+    pub fn is_layered(&self) -> bool {
+        self.clearcoat > 0.0 || self.sheen_color.iter().any(|&c| c > 0.0)
+    }
+
     /// What the material is. A kind the shaders do not know shades as diffuse there (their
     /// default branch), so it does here too; the scene loader writes only known kinds.
     pub fn kind(&self) -> MaterialKind {

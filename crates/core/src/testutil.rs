@@ -1,7 +1,14 @@
-//! What the tests of several crates share: the scenes shipped in the repository and small
-//! images made in code. (Compiled into the library, where it costs nothing, so that every
-//! crate's tests reach it.)
+//! What the tests of several crates share: the scenes shipped in the repository, small
+//! images made in code, and the χ² test of sampled directions against their density
+//! ([`chi2_sphere`], which the BSDFs' tests run on the CPU and the GPU). (Compiled into the
+//! library, where it costs nothing, so that every crate's tests reach it.)
 
+mod chi2;
+
+pub use chi2::{
+    Chi2, MIN_EXPECTED, PHI_CELLS, SUB_PHI, SUB_THETA, THETA_CELLS, chi2_direction_count, chi2_directions, chi2_sphere,
+    chi2_sphere_fn,
+};
 use std::path::PathBuf;
 
 /// The repository's root (this crate is `crates/core` in it).
@@ -66,4 +73,27 @@ pub fn torus_triangles(big: f64, small: f64, nu: usize, nv: usize) -> crate::pri
         p.triangles.push(Tagged { shape: crate::geometry::Triangle { v: f.map(|i| v[i]) }, tag });
     }
     p
+}
+
+/// The test of a table stored with the code: with `STRAHL_BLESS=1` the `computed` table is
+/// written to `file` (relative to this crate's root) under the comment `header`, eight numbers
+/// a row; else every entry of `stored` must equal `computed`'s bit for bit.
+pub fn bless_or_check(stored: &[f32], computed: &[f32], file: &str, header: &str) {
+    if std::env::var("STRAHL_BLESS").is_ok_and(|v| v == "1") {
+        let rows: Vec<String> = computed
+            .chunks(8)
+            .map(|c| format!("    {},", c.iter().map(|v| format!("{v:?}")).collect::<Vec<_>>().join(", ")))
+            .collect();
+        let text = format!("// {header}\n[\n{}\n]\n", rows.join("\n"));
+        std::fs::write(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(file), text).expect("writes the table");
+        return;
+    }
+    assert_eq!(stored.len(), computed.len(), "{file}: the table's length changed; write it anew with STRAHL_BLESS=1");
+    for (k, (&got, &want)) in stored.iter().zip(computed).enumerate() {
+        assert_eq!(
+            got.to_bits(),
+            want.to_bits(),
+            "{file}: entry {k}: stored {got}, integral {want}; write it anew with STRAHL_BLESS=1"
+        );
+    }
 }

@@ -10,6 +10,7 @@
 //! [`PathAccumulator::image_async`].
 
 pub mod aov;
+pub mod bsdf_probe;
 pub mod closest;
 mod context;
 pub mod denoise;

@@ -17,7 +17,7 @@ mod feature_key;
 mod tests;
 mod wgsl;
 
-pub use compose::compose;
+pub use compose::{compose, compose_diagnostic};
 pub use feature_key::FeatureKey;
 pub use wgsl::{exact_f32_literals, wgsl, write_wgsl};
 
@@ -42,6 +42,8 @@ pub const MODULES: &[(&str, &str)] = &[
     ("shaders/modules/shade.wgsl", include_str!("../shaders/modules/shade.wgsl")),
     ("shaders/modules/sampler.wgsl", include_str!("../shaders/modules/sampler.wgsl")),
     ("shaders/modules/dielectric.wgsl", include_str!("../shaders/modules/dielectric.wgsl")),
+    ("shaders/modules/sheen.wgsl", include_str!("../shaders/modules/sheen.wgsl")),
+    ("shaders/modules/layers.wgsl", include_str!("../shaders/modules/layers.wgsl")),
     ("shaders/modules/bsdf.wgsl", include_str!("../shaders/modules/bsdf.wgsl")),
     ("shaders/modules/emitters.wgsl", include_str!("../shaders/modules/emitters.wgsl")),
     ("shaders/modules/path.wgsl", include_str!("../shaders/modules/path.wgsl")),
@@ -53,6 +55,15 @@ pub const STANDALONE: &[(&str, &str)] = &[("shaders/denoise.wgsl", DENOISE_WGSL)
 
 /// The denoiser's shader (`crate::denoise`), before the shared values are substituted.
 pub const DENOISE_WGSL: &str = include_str!("../shaders/denoise.wgsl");
+
+/// The test and diagnostic programs: composed per scene like the [`Program`]s
+/// ([`compose_diagnostic`], with the scene's whole key), but never used to render, so not
+/// among them.
+pub const DIAGNOSTIC: &[(&str, &str)] = &[BSDF_PROBE];
+
+/// The BSDF probe (`crate::bsdf_probe`): the shaders' BSDFs sampled and evaluated for inputs
+/// the host chooses.
+pub const BSDF_PROBE: (&str, &str) = ("shaders/bsdf_probe.wgsl", include_str!("../shaders/bsdf_probe.wgsl"));
 
 /// A top-level shader and its entry points.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -54,7 +54,7 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
     use strahl_core::geometry::Part;
     use strahl_core::layout as g;
     use strahl_core::primitives::{PrimKind, PrimRef};
-    use strahl_core::render::{aov, bsdf, dielectric, limits, microfacet, pbr, sampler, spawn};
+    use strahl_core::render::{aov, bsdf, dielectric, limits, microfacet, pbr, sampler, sheen, spawn};
     use strahl_core::scene::MaterialKind;
     use strahl_core::scene::texture::Wrap;
     let mut values = vec![
@@ -133,6 +133,11 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("GGX_COS_STEPS", U32(microfacet::COS_STEPS as u32)),
         ("GGX_ALBEDO", F32s(microfacet::table())),
         ("GGX_ALBEDO_LEN", U32(microfacet::table().len() as u32)),
+        ("SHEEN_ROUGHNESS_STEPS", U32(sheen::ROUGHNESS_STEPS as u32)),
+        ("SHEEN_COS_STEPS", U32(sheen::COS_STEPS as u32)),
+        ("SHEEN_MIN_ALPHA", F32(sheen::MIN_ALPHA)),
+        ("SHEEN_ALBEDO", F32s(sheen::table())),
+        ("SHEEN_ALBEDO_LEN", U32(sheen::table().len() as u32)),
         ("DIELECTRIC_ROUGH_STEPS", U32(dielectric::ROUGH_STEPS as u32)),
         ("DIELECTRIC_COS_STEPS", U32(dielectric::COS_STEPS as u32)),
         ("DIELECTRIC_ETA_STEPS", U32(dielectric::ETA_STEPS as u32)),
@@ -158,6 +163,7 @@ pub fn constants() -> Vec<(&'static str, Shared)> {
         ("TILE_WORKGROUP", U32(super::tiles::WORKGROUP)),
         ("TRACE_WORKGROUP", U32(super::trace::WORKGROUP as u32)),
         ("CLOSEST_WORKGROUP", U32(super::closest::WORKGROUP as u32)),
+        ("PROBE_WORKGROUP", U32(super::bsdf_probe::WORKGROUP)),
         ("WAVEFRONT_WORKGROUP", U32(super::wavefront::WORKGROUP)),
         // The wavefront tracer's counters (backend::gpu::wavefront::counter).
         ("WF_PATHS_IN", U32(super::wavefront::counter::PATHS_IN)),
@@ -213,7 +219,8 @@ mod tests {
             .iter()
             .copied()
             .chain(crate::Program::ALL.map(|p| p.source()))
-            .chain(crate::shaders::STANDALONE.iter().copied());
+            .chain(crate::shaders::STANDALONE.iter().copied())
+            .chain(crate::shaders::DIAGNOSTIC.iter().copied());
         let of_variant: Vec<&str> = SplitArray::ALL.iter().map(|a| a.defs().1).collect();
         let directives = ["#define_import_path", "#import", "#ifdef", "#ifndef", "#if", "#else", "#endif"];
         let mut used = std::collections::HashSet::new();

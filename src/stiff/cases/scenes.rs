@@ -102,7 +102,8 @@ pub fn scaled(scene: &Scene, s: f64) -> Scene {
         };
     }
     for l in &mut out.lights {
-        if let Light::Point { position, intensity } = l {
+        if let Light::Point { position, intensity, range } = l {
+            *range *= s;
             *position = *position * s;
             *intensity = intensity.map(|i| i * s * s);
         }

@@ -80,11 +80,17 @@ pub struct RoughSample {
     pub through: bool,
 }
 
+/// What the lobe is divided by: its albedo where `compensate`, else 1 (single scattering).
+#[inline]
+fn compensation(alpha: f32, cos_o: f32, eta: f32, compensate: bool) -> f32 {
+    if compensate { albedo(alpha, cos_o, eta) } else { 1.0 }
+}
+
 /// f·|cos θ_i| and the density [`rough_sample`] chooses `wi` with, of the rough interface of
 /// GGX `alpha` and index ratio `eta`, from `wo` (local, `wo.z > 0`); `wi` on either side;
 /// `compensate`: divided by the albedo (else single scattering, as Mitsuba and pbrt have it).
 pub fn rough_eval(alpha: f32, eta: f32, wo: V3<f32>, wi: V3<f32>, compensate: bool) -> (f32, f32) {
-    let e = if compensate { albedo(alpha, wo.z, eta) } else { 1.0 };
+    let e = compensation(alpha, wo.z, eta, compensate);
     let (f_cos, pdf) = rough_eval_single(alpha, eta, wo, wi);
     (f_cos / e, pdf)
 }
@@ -126,7 +132,7 @@ fn rough_eval_single(alpha: f32, eta: f32, wo: V3<f32>, wi: V3<f32>) -> (f32, f3
 /// on the wrong side (the light single scattering loses).
 pub fn rough_sample(alpha: f32, eta: f32, wo: V3<f32>, u: [f32; 3], compensate: bool) -> Option<RoughSample> {
     let s = rough_sample_single(alpha, eta, wo, u)?;
-    let e = if compensate { albedo(alpha, wo.z, eta) } else { 1.0 };
+    let e = compensation(alpha, wo.z, eta, compensate);
     Some(RoughSample { weight: s.weight / e, ..s })
 }
 
@@ -262,29 +268,17 @@ fn integrate(alpha: f32, mu: f32, eta: f32) -> f64 {
 mod tests {
     use super::*;
     use crate::render::sampler::Sampler;
-    use std::f64::consts::PI;
 
     /// The stored table is what [`integrate`] computes, bit for bit (with `STRAHL_BLESS=1`:
     /// written anew).
     #[test]
     fn the_stored_table_is_the_integral() {
-        let t = integrate_table();
-        if std::env::var("STRAHL_BLESS").is_ok_and(|v| v == "1") {
-            let rows: Vec<String> = t
-                .chunks(8)
-                .map(|c| format!("    {},", c.iter().map(|v| format!("{v:?}")).collect::<Vec<_>>().join(", ")))
-                .collect();
-            let text = format!(
-                "// E(alpha, mu, eta) of dielectric.rs, written by its test the_stored_table_is_the_integral.\n[\n{}\n]\n",
-                rows.join("\n")
-            );
-            std::fs::write(concat!(env!("CARGO_MANIFEST_DIR"), "/src/render/dielectric_albedo.in"), text)
-                .expect("writes the table");
-            return;
-        }
-        for (k, (&got, want)) in table().iter().zip(t).enumerate() {
-            assert_eq!(got.to_bits(), want.to_bits(), "entry {k}: stored {got}, integral {want}; STRAHL_BLESS=1");
-        }
+        crate::testutil::bless_or_check(
+            table(),
+            &integrate_table(),
+            "src/render/dielectric_albedo.in",
+            "E(alpha, mu, eta) of dielectric.rs, written by its test the_stored_table_is_the_integral.",
+        );
     }
 
     fn direction(cos: f32) -> V3<f32> {
@@ -328,77 +322,25 @@ mod tests {
         assert!(e < 0.9, "E(1, 0.08, 1.5) = {e}");
     }
 
-    /// χ² test of sampling against evaluation (as Mitsuba's and pbrt's test suites do): the
-    /// sphere of directions in θ × φ cells, each cell's expected count the density of
-    /// [`rough_eval`] integrated over it (midpoint rule on a finer grid), against the counts
-    /// of [`rough_sample`]'s directions; cells expecting fewer than 5 pooled. The statistic
-    /// must stay below the 99.9 % quantile of χ² with the pooled cells' degrees of freedom.
+    /// χ² test of sampling against evaluation (as Mitsuba's and pbrt's test suites do,
+    /// [`crate::testutil::chi2_sphere`]): the counts of [`rough_sample`]'s directions in θ × φ
+    /// cells of the sphere against the density of [`rough_eval`] integrated over them; the
+    /// statistic must stay below the 99.9 % quantile, and the density integrate to the share
+    /// of draws that gave a direction.
     #[test]
     fn rough_sampling_matches_evaluation_chi2() {
-        const THETA: usize = 20;
-        const PHI: usize = 40;
-        // Subcells per cell in θ and φ: a lobe's edge (a grazing transmission's cut-off) must
-        // not fall in one midpoint's share.
-        const SUB_T: usize = 160;
-        const SUB_P: usize = 8;
         let n = 400_000usize;
         for (alpha, eta, cos) in [(0.3f32, 1.5f32, 0.7f32), (0.6, 1.0 / 1.5, 0.8), (0.1, 1.33, 0.35), (1.0, 1.5, 0.2)] {
             let wo = direction(cos);
-            let mut observed = vec![0f64; THETA * PHI];
             let mut rng = Sampler::new(11, 12, 13);
-            let cell = |d: V3<f32>| {
-                let theta = (d.z as f64).clamp(-1.0, 1.0).acos();
-                let phi = (d.y as f64).atan2(d.x as f64).rem_euclid(2.0 * PI);
-                let i = ((theta / PI * THETA as f64) as usize).min(THETA - 1);
-                let j = ((phi / (2.0 * PI) * PHI as f64) as usize).min(PHI - 1);
-                i * PHI + j
-            };
-            let mut sampled = 0usize;
-            for _ in 0..n {
-                let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
-                if let Some(s) = rough_sample(alpha, eta, wo, u, true) {
-                    observed[cell(s.wi)] += 1.0;
-                    sampled += 1;
-                }
-            }
-            let mut expected = vec![0f64; THETA * PHI];
-            for i in 0..THETA * SUB_T {
-                let (t0, t1) = (PI * i as f64 / (THETA * SUB_T) as f64, PI * (i + 1) as f64 / (THETA * SUB_T) as f64);
-                let t = 0.5 * (t0 + t1);
-                let area = (t0.cos() - t1.cos()) * 2.0 * PI / (PHI * SUB_P) as f64;
-                for j in 0..PHI * SUB_P {
-                    let p = 2.0 * PI * (j as f64 + 0.5) / (PHI * SUB_P) as f64;
-                    let d = V3::new((t.sin() * p.cos()) as f32, (t.sin() * p.sin()) as f32, t.cos() as f32);
-                    let (_, pdf) = rough_eval(alpha, eta, wo, d, true);
-                    expected[(i / SUB_T) * PHI + j / SUB_P] += pdf as f64 * area * n as f64;
-                }
-            }
-            // The density integrates to the share of samples that exist.
-            let total: f64 = expected.iter().sum();
-            assert!(
-                (total - sampled as f64).abs() < 0.01 * n as f64,
-                "α {alpha} η {eta}: ∫pdf {} vs sampled {}",
-                total / n as f64,
-                sampled as f64 / n as f64
-            );
-            let (mut chi2, mut dof, mut pool_o, mut pool_e) = (0.0f64, 0usize, 0.0f64, 0.0f64);
-            for (o, e) in observed.iter().zip(&expected) {
-                if *e < 5.0 {
-                    pool_o += o;
-                    pool_e += e;
-                } else {
-                    chi2 += (o - e) * (o - e) / e;
-                    dof += 1;
-                }
-            }
-            if pool_e > 0.0 {
-                chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e.max(5.0);
-                dof += 1;
-            }
-            // Wilson–Hilferty: the 99.9 % quantile of χ²(k) is about k (1 − 2/(9k) + 3.09 √(2/(9k)))³.
-            let k = (dof - 1) as f64;
-            let q = k * (1.0 - 2.0 / (9.0 * k) + 3.09 * (2.0 / (9.0 * k)).sqrt()).powi(3);
-            assert!(chi2 < q, "α {alpha} η {eta} μ {cos}: χ² {chi2:.1} over {k} degrees of freedom (limit {q:.1})");
+            let samples: Vec<V3<f32>> = (0..n)
+                .filter_map(|_| {
+                    let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+                    rough_sample(alpha, eta, wo, u, true).map(|s| s.wi)
+                })
+                .collect();
+            crate::testutil::chi2_sphere_fn(samples, n, |d| rough_eval(alpha, eta, wo, d, true).1)
+                .unwrap_or_else(|e| panic!("α {alpha} η {eta} μ {cos}: {e}"));
         }
     }
 

@@ -17,6 +17,18 @@ fn rgb(v: [f64; 3]) -> [f32; 3] {
     v.map(|c| c as f32)
 }
 
+/// A material's dielectric reflectance at normal incidence: ((η − 1)/(η + 1))² (Fresnel at
+/// normal incidence, glTF's `dielectric_brdf`), tinted by `KHR_materials_specular`'s colour,
+/// each channel at most 1, times its factor (the extension's `fresnel_mix`); 0.04 exactly for
+/// η = 1.5 and the defaults. Only a pbr material reads it.
+fn spec_at_normal(m: &crate::scene::Material) -> [f32; 3] {
+    if m.kind != crate::scene::MaterialKind::Pbr {
+        return [DEFAULT_F0; 3];
+    }
+    let r = (m.ior - 1.0) / (m.ior + 1.0);
+    m.specular_color.map(|c| ((r * r * c).min(1.0) * m.specular) as f32)
+}
+
 impl FlatScene {
     /// Flattens `scene`, whose primitives are `prims` and whose BVH over them is `bvh`.
     pub fn new(scene: &Scene, prims: &Primitives<f32>, bvh: &Bvh) -> Self {
@@ -100,9 +112,14 @@ impl FlatScene {
                         AlphaMode::Mask(c) => c as f32,
                         _ => 0.0,
                     },
-                    _pad: [0; 2],
+                    clearcoat: m.clearcoat as f32,
+                    clearcoat_roughness: m.clearcoat_roughness as f32,
                     absorption: rgb(m.absorption),
                     transmission: m.transmission as f32,
+                    spec_at_normal: spec_at_normal(m),
+                    spec_at_grazing: m.specular as f32,
+                    sheen_color: rgb(m.sheen_color),
+                    sheen_roughness: m.sheen_roughness as f32,
                 })
                 .collect(),
             lights: scene.lights.iter().map(flat_light).collect(),
@@ -274,10 +291,11 @@ pub fn build_emitters(g: &FlatScene) -> (Vec<FlatEmitter>, f32) {
 /// A scene light as the shaders read it.
 fn flat_light(l: &Light) -> FlatLight {
     match l {
-        Light::Point { position, intensity } => FlatLight {
+        Light::Point { position, intensity, range } => FlatLight {
             vector: position.cast::<f32>().to_array(),
             kind: LIGHT_POINT,
             intensity: rgb(*intensity),
+            range: *range as f32,
             ..FlatLight::default()
         },
         Light::Directional { direction, intensity } => FlatLight {

@@ -35,6 +35,16 @@ pub fn schlick_lanes<const N: usize>(f0: V<N>, cos: F<N>) -> V<N> {
     f0 + (V::splat([1.0; 3]) - f0).scale(m5)
 }
 
+/// Schlick's Fresnel between reflectance `f0` at normal and `f90` at grazing incidence,
+/// f0 + (f90 − f0)(1 − cos)⁵ (`KHR_materials_specular`'s form; [`schlick_lanes`] for f90 = 1),
+/// in every lane.
+#[inline(always)]
+pub fn schlick_grazing_lanes<const N: usize>(f0: V<N>, f90: F<N>, cos: F<N>) -> V<N> {
+    let m = clamp01(F::splat(1.0) - cos);
+    let m5 = m * m * m * m * m;
+    f0 + (V::new(f90, f90, f90) - f0).scale(m5)
+}
+
 /// GGX normal distribution D(h) for cos θ_h = `cos_h` (Walter et al. 2007, eq. 33).
 #[inline]
 pub fn ggx_d(alpha: f32, cos_h: f32) -> f32 {
@@ -213,27 +223,12 @@ mod tests {
     /// written anew).
     #[test]
     fn the_stored_table_is_the_integral() {
-        let t = integrate_table();
-        if std::env::var("STRAHL_BLESS").is_ok_and(|v| v == "1") {
-            let rows: Vec<String> = t
-                .chunks(8)
-                .map(|c| format!("    {},", c.iter().map(|v| format!("{v:?}")).collect::<Vec<_>>().join(", ")))
-                .collect();
-            let text = format!(
-                "// E₁ then E₅ of microfacet.rs, written by its test the_stored_table_is_the_integral.\n[\n{}\n]\n",
-                rows.join("\n")
-            );
-            std::fs::write(concat!(env!("CARGO_MANIFEST_DIR"), "/src/render/microfacet_albedo.in"), text)
-                .expect("writes the table");
-            return;
-        }
-        for (k, (&got, want)) in table().iter().zip(t).enumerate() {
-            assert_eq!(
-                got.to_bits(),
-                want.to_bits(),
-                "entry {k}: stored {got}, integral {want}; write it anew with STRAHL_BLESS=1"
-            );
-        }
+        crate::testutil::bless_or_check(
+            table(),
+            &integrate_table(),
+            "src/render/microfacet_albedo.in",
+            "E₁ then E₅ of microfacet.rs, written by its test the_stored_table_is_the_integral.",
+        );
     }
 
     /// Table entries against independent random estimates (10⁶ samples each): the

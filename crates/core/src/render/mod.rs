@@ -1,7 +1,7 @@
 //! Image formation both backends share, as stages named like the shaders: [`camera`]
 //! (`camera.wgsl`), [`spawn`] (`spawn.wgsl`), [`surface`] (`surface.wgsl`), [`texture`]
 //! (`texture.wgsl`), [`environment`] (`environment.wgsl`), and for path tracing [`sampler`]
-//! (`sampler.wgsl`), [`bsdf`] (`bsdf.wgsl`), [`microfacet`] and [`pbr`], [`emitters`]
+//! (`sampler.wgsl`), [`bsdf`] (`bsdf.wgsl`), [`microfacet`], [`pbr`], [`layers`] and [`sheen`], [`emitters`]
 //! (`emitters.wgsl`), and the output variables besides radiance [`aov`] (`aov.wgsl`); [`limits`] holds the depths and reaches the tracers share, [`flatten`]
 //! the scene made into the buffers both read. The CPU backend (`strahl-cpu`) runs these
 //! functions in its tracers (`shade.rs`, `path.rs`, and lane by lane `lanes/`); the GPU runs
@@ -14,10 +14,12 @@ pub mod dielectric;
 pub mod emitters;
 pub mod environment;
 pub mod flatten;
+pub mod layers;
 pub mod limits;
 pub mod microfacet;
 pub mod pbr;
 pub mod sampler;
+pub mod sheen;
 pub mod spawn;
 pub mod surface;
 pub mod texture;

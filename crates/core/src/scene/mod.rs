@@ -172,6 +172,19 @@ pub struct Material {
     /// A rough dielectric scatters once (Mitsuba's and pbrt's model), its lost energy not made
     /// up ([`crate::render::dielectric`]).
     pub single_scattering: bool,
+    /// pbr: `KHR_materials_specular`'s factor (scales the dielectric's reflection and its
+    /// grazing reflectance; 1: glTF's default) and colour (tints its reflectance at normal
+    /// incidence).
+    pub specular: f64,
+    pub specular_color: [f64; 3],
+    /// pbr: `KHR_materials_clearcoat`'s factor and perceptual roughness: a smooth or rough
+    /// dielectric coat (F0 0.04) over everything else ([`crate::render::layers`]).
+    pub clearcoat: f64,
+    pub clearcoat_roughness: f64,
+    /// pbr: `KHR_materials_sheen`'s colour (black: none) and roughness: a cloth-like sheen
+    /// over the base, under the clear coat.
+    pub sheen_color: [f64; 3],
+    pub sheen_roughness: f64,
 }
 
 impl Material {
@@ -197,6 +210,12 @@ impl Material {
             absorption: [0.0; 3],
             transmission: 0.0,
             single_scattering: false,
+            specular: 1.0,
+            specular_color: [1.0; 3],
+            clearcoat: 0.0,
+            clearcoat_roughness: 0.0,
+            sheen_color: [0.0; 3],
+            sheen_roughness: 0.0,
         }
     }
 
@@ -212,7 +231,8 @@ impl Material {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Light {
     /// Radiant intensity `intensity` (W/sr per channel) from `position`; falls off as 1/r².
-    Point { position: V3<f64>, intensity: [f64; 3] },
+    /// `range` > 0 limits its reach as a spot light's (0: unlimited).
+    Point { position: V3<f64>, intensity: [f64; 3], range: f64 },
     /// Light travelling along the unit vector `direction`, irradiance `intensity` on a surface
     /// facing it.
     Directional { direction: V3<f64>, intensity: [f64; 3] },

@@ -9,6 +9,7 @@ use super::guide::Guides;
 use super::texels::{self, Texels};
 use strahl_core::layout::{ATTR_NORMALS, FlatScene, LIGHT_STAND_IN, MATERIAL_ALPHA, MATERIAL_UNLIT, TEXTURE_NEAREST};
 use strahl_core::render::bsdf::MIN_ROUGHNESS;
+use strahl_core::render::pbr::PBR_F0;
 use strahl_core::scene::MaterialKind;
 
 /// What the lanes' shading may take for granted in a scene, found once per render.
@@ -88,10 +89,19 @@ impl Facts {
                     MaterialKind::Mirror if untextured => {
                         Some(if m.roughness < MIN_ROUGHNESS { Kind::Mirror } else { Kind::Rough })
                     }
-                    // Rough glass, absorbing glass and pbr glass are shaded one path at a time
-                    // (the render's summary counts their vertices).
+                    // Rough glass, absorbing glass, pbr glass and pbr materials with layers or
+                    // their own specular reflectance are shaded one path at a time (the
+                    // render's summary counts their vertices).
                     MaterialKind::Dielectric if untextured && m.roughness < MIN_ROUGHNESS && clear => Some(Kind::Glass),
-                    MaterialKind::Pbr if m.transmission <= 0.0 && clear => Some(Kind::Pbr),
+                    MaterialKind::Pbr
+                        if m.transmission <= 0.0
+                            && clear
+                            && !m.is_layered()
+                            && m.spec_at_normal == [PBR_F0; 3]
+                            && m.spec_at_grazing == 1.0 =>
+                    {
+                        Some(Kind::Pbr)
+                    }
                     _ => None,
                 };
                 kind.filter(|_| plain).map(|kind| Material {

@@ -33,12 +33,12 @@ pub(super) fn eval<const N: usize>(l: &Lobes<N>, wo: V<N>, wi: V<N>, ns: V<N>) -
     let (lo, li) = (ggx_lambda(l.alpha, cos_o), ggx_lambda(l.alpha, cos_i));
     let k = d / (F::splat(4.0) * cos_o);
     let cos_oh = wo.dot(h);
-    let f = pbr_fresnel_lanes(l.reflectance, l.metal_weight, l.coat_weight, cos_oh);
+    let f = pbr_fresnel_lanes(l, cos_oh);
     let lobe = cos_h.gt(zero);
     let f_cos = lobe.select_v(f_cos + f.scale(k / (one + lo + li)), f_cos);
     let pdf = lobe.select(pdf + l.p_spec * k / (one + lo), pdf);
-    // (Not `> 0`: a NaN cosine goes on, as in the scalar test.)
-    let above = !(cos_o.le(zero) | cos_i.le(zero));
+    // (Not `> 0`: a NaN cosine goes on, as in the scalar test.) No lobe: nothing (`bsdf::pbr_eval`).
+    let above = !(cos_o.le(zero) | cos_i.le(zero)) & !(l.p_spec.le(zero) & l.diffuse.max_component().le(zero));
     (above.select_v(f_cos, V::splat([0.0; 3])), above.select(pdf, zero))
 }
 

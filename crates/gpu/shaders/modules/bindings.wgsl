@@ -213,20 +213,24 @@ fn load_shape_ref(k: u32) -> u32 {
 #endif
 
 fn load_material(i: u32) -> Material {
-    let b = object_slot(OBJ_MATERIALS) + 6u * i;
+    let b = object_slot(OBJ_MATERIALS) + 8u * i;
     let w0 = objects[b];
     let w1 = objects[b + 1u];
     let w2 = objects[b + 2u];
     let w3 = objects[b + 3u];
     let w4 = objects[b + 4u];
     let w5 = objects[b + 5u];
+    let w6 = objects[b + 6u];
+    let w7 = objects[b + 7u];
     return Material(
         f3(w0), w0.w,
         f3(w1), bitcast<f32>(w1.w),
         bitcast<f32>(w2.x), w2.y, w2.z, w2.w,
         bitcast<f32>(w3.x), w3.y, w3.z, bitcast<f32>(w3.w),
-        bitcast<f32>(w4.x), bitcast<f32>(w4.y), w4.zw,
+        bitcast<f32>(w4.x), bitcast<f32>(w4.y), bitcast<f32>(w4.z), bitcast<f32>(w4.w),
         f3(w5), bitcast<f32>(w5.w),
+        f3(w6), bitcast<f32>(w6.w),
+        f3(w7), bitcast<f32>(w7.w),
     );
 }
 

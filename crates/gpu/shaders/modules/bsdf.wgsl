@@ -1,6 +1,7 @@
 // Scattering for the path tracer: twin of crates/core/src/render/bsdf.rs (Lambert, smooth and GGX-rough
 // conductors with Schlick's Fresnel, smooth and (ROUGH_GLASS) rough dielectrics, glTF's metallic-roughness
-// material, mixed with a rough dielectric by its transmission). wo points away from the surface, ns
+// material, mixed with a rough dielectric by its transmission, under (LAYERS) a clear coat and sheen).
+// wo points away from the surface, ns
 // is the normal on wo's side; "weight" is f |cos| / pdf.
 #define_import_path strahl::bsdf
 
@@ -12,6 +13,11 @@
 #endif
 #ifdef ROUGH_GLASS
 #import strahl::dielectric::{rough_eval, rough_sample}
+#endif
+#ifdef PBR
+#ifdef LAYERS
+#import strahl::layers::{Layers, layers, coat_eval, layer_sheen_eval}
+#endif
 #endif
 
 const PI: f32 = 3.14159265358979;
@@ -74,6 +80,10 @@ fn pbr_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>) -> BsdfEva
         return BsdfEval(vec3<f32>(0.0), 0.0);
     }
     let l = pbr_lobes(m, cos_o);
+    // No lobe (render::bsdf::pbr_eval): pbr_sample never samples it.
+    if l.p_spec <= 0.0 && max(l.diffuse.x, max(l.diffuse.y, l.diffuse.z)) <= 0.0 {
+        return BsdfEval(vec3<f32>(0.0), 0.0);
+    }
     var f_cos = l.diffuse * (cos_i * INV_PI);
     var pdf = (1.0 - l.p_spec) * cos_i * INV_PI;
     let h = normalize(wo + wi);
@@ -151,7 +161,13 @@ fn glass_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<
     let dir = normalize(to_world(s.wi, ns));
     var weight = vec3<f32>(s.weight);
     if s.through {
-        weight = m.color * s.weight;
+        if m.kind == MAT_PBR {
+            // glTF's glass: no 1/eta^2, sqrt(colour) a crossing (render::bsdf::glass_sample).
+            let eta = glass_eta(m, front);
+            weight = sqrt(m.color) * (s.weight * (eta * eta));
+        } else {
+            weight = m.color * s.weight;
+        }
     }
     return BsdfSample(dir, weight, s.pdf, s.through, s.through, true);
 }
@@ -196,6 +212,75 @@ fn pbr_glass_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: v
 #endif
 #endif
 
+#ifdef PBR
+// render::bsdf::base_eval: the pbr material without its layers.
+fn base_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>, front: bool) -> BsdfEval {
+#ifdef ROUGH_GLASS
+    if m.transmission > 0.0 {
+        return pbr_glass_eval(m, wo, wi, ns, front);
+    }
+#endif
+    return pbr_eval(m, wo, wi, ns);
+}
+
+// render::bsdf::base_sample.
+fn base_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<f32>) -> BsdfSample {
+#ifdef ROUGH_GLASS
+    if m.transmission > 0.0 {
+        return pbr_glass_sample(m, wo, ns, front, u);
+    }
+#endif
+    return pbr_sample(m, wo, ns, u);
+}
+#endif
+
+#ifdef PBR
+#ifdef LAYERS
+// render::bsdf::has_layers.
+fn has_layers(m: Material, front: bool) -> bool {
+    return (m.clearcoat > 0.0 || any(m.sheen_color > vec3<f32>(0.0))) && (front || m.transmission <= 0.0);
+}
+
+// render::bsdf::layered_eval.
+fn layered_eval(m: Material, l: Layers, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>, front: bool) -> BsdfEval {
+    let b = base_eval(m, wo, wi, ns, front);
+    let lo = to_local(wo, ns);
+    let li = to_local(wi, ns);
+    let c = coat_eval(l, lo, li);
+    let s = layer_sheen_eval(l, lo, li);
+    return BsdfEval(b.f_cos * l.base + vec3<f32>(c.x) + s.xyz, b.pdf * l.base + c.y * l.p_coat + s.w * l.p_sheen);
+}
+
+// render::bsdf::layered_sample.
+fn layered_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<f32>) -> BsdfSample {
+    let none = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false, false);
+    let l = layers(m, dot(wo, ns));
+    var dir: vec3<f32>;
+    if u.x < l.p_coat {
+        let h = to_world(ggx_sample_visible(l.coat_alpha, to_local(wo, ns), u.y, u.z), ns);
+        dir = reflect_dir(-wo, h);
+    } else if u.x < l.p_coat + l.p_sheen {
+        dir = normalize(to_world(cosine_hemisphere(u.y, u.z), ns));
+    } else {
+        let v = min((u.x - l.p_coat - l.p_sheen) / l.base, 0.99999994);
+        let s = base_sample(m, wo, ns, front, vec3<f32>(v, u.y, u.z));
+        if !s.valid {
+            return none;
+        }
+        if s.through {
+            return s;
+        }
+        dir = s.dir;
+    }
+    let ev = layered_eval(m, l, wo, dir, ns, front);
+    if !(ev.pdf > 0.0) {
+        return none;
+    }
+    return BsdfSample(dir, ev.f_cos / ev.pdf, ev.pdf, false, false, true);
+}
+#endif
+#endif
+
 fn bsdf_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>, front: bool) -> BsdfEval {
     let cos_i = dot(wi, ns);
     if cos_i <= 0.0 {
@@ -203,12 +288,12 @@ fn bsdf_eval(m: Material, wo: vec3<f32>, wi: vec3<f32>, ns: vec3<f32>, front: bo
     }
 #ifdef PBR
     if m.kind == MAT_PBR {
-#ifdef ROUGH_GLASS
-        if m.transmission > 0.0 {
-            return pbr_glass_eval(m, wo, wi, ns, front);
+#ifdef LAYERS
+        if has_layers(m, front) {
+            return layered_eval(m, layers(m, dot(wo, ns)), wo, wi, ns, front);
         }
 #endif
-        return pbr_eval(m, wo, wi, ns);
+        return base_eval(m, wo, wi, ns, front);
     }
 #endif
 #ifdef ROUGH_GLASS
@@ -243,12 +328,12 @@ fn bsdf_sample(m: Material, wo: vec3<f32>, ns: vec3<f32>, front: bool, u: vec3<f
     let none = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false, false);
 #ifdef PBR
     if m.kind == MAT_PBR {
-#ifdef ROUGH_GLASS
-        if m.transmission > 0.0 {
-            return pbr_glass_sample(m, wo, ns, front, u);
+#ifdef LAYERS
+        if has_layers(m, front) {
+            return layered_sample(m, wo, ns, front, u);
         }
 #endif
-        return pbr_sample(m, wo, ns, u);
+        return base_sample(m, wo, ns, front, u);
     }
 #endif
 #ifdef ROUGH_GLASS

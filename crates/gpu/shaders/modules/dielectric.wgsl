@@ -48,16 +48,22 @@ fn dielectric_albedo(alpha: f32, cos_o: f32, eta: f32) -> f32 {
     return max(e[0] * (1.0 - fz) + e[1] * fz, 1e-3);
 }
 
+// What the lobe is divided by: its albedo where compensating, else 1
+// (render::dielectric::compensation).
+fn compensation(alpha: f32, cos_o: f32, eta: f32, compensate: bool) -> f32 {
+    if compensate {
+        return dielectric_albedo(alpha, cos_o, eta);
+    }
+    return 1.0;
+}
+
 // f |cos theta_i| and the density rough_sample chooses wi with (render::dielectric::rough_eval).
 fn rough_eval(alpha: f32, eta: f32, wo: vec3<f32>, wi: vec3<f32>, compensate: bool) -> vec2<f32> {
     let cos_o = wo.z;
     if cos_o <= 0.0 || wi.z == 0.0 {
         return vec2<f32>(0.0);
     }
-    var e = 1.0;
-    if compensate {
-        e = dielectric_albedo(alpha, cos_o, eta);
-    }
+    let e = compensation(alpha, cos_o, eta, compensate);
     let lo = ggx_lambda(alpha, cos_o);
     let li = ggx_lambda(alpha, wi.z);
     if wi.z > 0.0 {
@@ -93,10 +99,7 @@ fn rough_sample(alpha: f32, eta: f32, wo: vec3<f32>, u: vec3<f32>, compensate: b
     let f = fresnel_dielectric(cos_oh, eta);
     let lo = ggx_lambda(alpha, cos_o);
     let d = ggx_d(alpha, h.z);
-    var e = 1.0;
-    if compensate {
-        e = dielectric_albedo(alpha, cos_o, eta);
-    }
+    let e = compensation(alpha, cos_o, eta, compensate);
     if u.x < f {
         let wi = reflect_dir(-wo, h);
         if wi.z <= 0.0 {

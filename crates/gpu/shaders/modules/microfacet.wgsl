@@ -15,6 +15,13 @@ fn schlick(f0: vec3<f32>, cos_t: f32) -> vec3<f32> {
     return f0 + (vec3<f32>(1.0) - f0) * m5;
 }
 
+// f0 + (f90 - f0)(1 - cos)^5 (KHR_materials_specular's form).
+fn schlick_grazing(f0: vec3<f32>, f90: f32, cos_t: f32) -> vec3<f32> {
+    let m = clamp(1.0 - cos_t, 0.0, 1.0);
+    let m5 = m * m * m * m * m;
+    return f0 + (vec3<f32>(f90) - f0) * m5;
+}
+
 fn ggx_d(alpha: f32, cos_h: f32) -> f32 {
     let a2 = alpha * alpha;
     let c2 = cos_h * cos_h;

@@ -106,11 +106,19 @@ struct Material {
     // Alpha factor and the MASK cut-off.
     alpha: f32,
     alpha_cutoff: f32,
-    pad: vec2<u32>,
+    // pbr: KHR_materials_clearcoat's factor and perceptual roughness (render::layers).
+    clearcoat: f32,
+    clearcoat_roughness: f32,
     // Absorption per unit length inside (Beer-Lambert, on the segment that ends on a back face).
     absorption: vec3<f32>,
     // pbr: KHR_materials_transmission's factor (render::bsdf::glass_share).
     transmission: f32,
+    // pbr: the dielectric's reflectance at normal and grazing incidence (ior, KHR_materials_specular).
+    spec_at_normal: vec3<f32>,
+    spec_at_grazing: f32,
+    // pbr: KHR_materials_sheen's colour (black: none) and roughness.
+    sheen_color: vec3<f32>,
+    sheen_roughness: f32,
 }
 
 // A use of an image in `texels` (gpu_types::FlatTexture): the texture-coordinate transform

@@ -15,10 +15,10 @@ use std::sync::{Mutex, OnceLock};
 
 use super::{CAPABILITIES, FeatureKey, MODULES, Program, ShaderError};
 
-/// The composer with every shared module, and the programs' texts read so far.
+/// The composer with every shared module, and the programs' texts read so far, by file.
 struct Shaders {
     composer: Composer,
-    programs: HashMap<Program, String>,
+    programs: HashMap<&'static str, String>,
 }
 
 /// The process's composer, or why it could not be built (kept: the texts are read once).
@@ -78,6 +78,22 @@ pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, Shader
     if program == Program::View {
         defs.insert("COUNT_VISITS".into(), ShaderDefValue::Bool(true));
     }
+    compose_source(program.source(), defs)
+}
+
+/// Composes the test or diagnostic program `source` (its file and built-in text, an entry of
+/// [`super::DIAGNOSTIC`]) for a scene whose key is `key`: with every flag of the key, as the
+/// path tracer is composed, so that the same material and geometry code is on.
+pub fn compose_diagnostic(source: (&'static str, &'static str), key: FeatureKey) -> Result<naga::Module, ShaderError> {
+    compose_source(source, key.shader_defs())
+}
+
+/// Composes the top-level shader `file` (whose text is `built_in` unless `STRAHL_SHADER_DIR`
+/// says otherwise) with the shader defs `defs`.
+fn compose_source(
+    (file, built_in): (&'static str, &'static str),
+    defs: HashMap<String, ShaderDefValue>,
+) -> Result<naga::Module, ShaderError> {
     let lock = SHADERS.get_or_init(|| Shaders::new().map(Mutex::new)).as_ref().map_err(Clone::clone)?;
     let mut shaders = match lock.lock() {
         Ok(shaders) => shaders,
@@ -91,8 +107,7 @@ pub fn compose(program: Program, key: FeatureKey) -> Result<naga::Module, Shader
         }
     };
     let Shaders { composer, programs } = &mut *shaders;
-    let (file, built_in) = program.source();
-    let src = match programs.entry(program) {
+    let src = match programs.entry(file) {
         std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
         std::collections::hash_map::Entry::Vacant(e) => e.insert(source_text(file, built_in)?),
     };

@@ -46,6 +46,8 @@ bitflags::bitflags! {
         const ROUGH_GLASS = 1 << 16;
         /// A material absorbs inside (Beer–Lambert).
         const ABSORPTION = 1 << 17;
+        /// A pbr material has a clear coat or sheen (`modules/layers.wgsl`, `sheen.wgsl`).
+        const LAYERS = 1 << 18;
     }
 }
 
@@ -67,6 +69,8 @@ struct Facts {
     rough_glass: bool,
     /// A material that absorbs inside.
     absorption: bool,
+    /// A pbr material with a clear coat or sheen.
+    layers: bool,
     alpha: bool,
     /// Per-triangle attributes.
     attributes: bool,
@@ -98,7 +102,8 @@ impl FeatureKey {
         .union(Self::PBR)
         .union(Self::ALPHA)
         .union(Self::ROUGH_GLASS)
-        .union(Self::ABSORPTION);
+        .union(Self::ABSORPTION)
+        .union(Self::LAYERS);
     /// The materials that bend a ray without scattering it (the AOV program follows them).
     pub const SPECULAR: FeatureKey = Self::MIRROR.union(Self::DIELECTRIC);
     /// Every scene feature: the one shader that renders any scene.
@@ -129,6 +134,10 @@ impl FeatureKey {
                     || (m.kind == MaterialKind::Pbr && m.transmission as f32 > 0.0)
             }),
             absorption: scene.materials.iter().any(|m| m.absorption.iter().any(|&a| a as f32 != 0.0)),
+            layers: scene.materials.iter().any(|m| {
+                m.kind == MaterialKind::Pbr
+                    && (m.clearcoat as f32 > 0.0 || m.sheen_color.iter().any(|&c| c as f32 > 0.0))
+            }),
             alpha: scene.materials.iter().any(|m| m.alpha_mode != AlphaMode::Opaque),
             attributes: needs_attributes(scene),
             environment: scene.environment.is_some(),
@@ -149,6 +158,7 @@ impl FeatureKey {
             materials: g.materials.iter().map(|m| (m.kind(), m.is_light())).collect(),
             rough_glass: g.materials.iter().any(strahl_core::render::bsdf::is_rough_glass),
             absorption: g.materials.iter().any(|m| m.absorption != [0.0; 3]),
+            layers: g.materials.iter().any(|m| m.kind() == MaterialKind::Pbr && m.is_layered()),
             alpha: g.alpha,
             attributes: !g.triangle_attrs.is_empty(),
             environment: !g.environment.is_empty(),
@@ -175,6 +185,7 @@ impl FeatureKey {
             (f.alpha, Self::ALPHA),
             (f.rough_glass, Self::ROUGH_GLASS),
             (f.absorption, Self::ABSORPTION),
+            (f.layers, Self::LAYERS),
             (f.attributes, Self::TEXTURES),
             (f.environment, Self::ENVIRONMENT),
             (f.env_map, Self::ENV_MAP),

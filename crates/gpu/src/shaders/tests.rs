@@ -27,6 +27,8 @@ fn keys_to_validate() -> Vec<FeatureKey> {
         FeatureKey::TEXTURES | FeatureKey::ENVIRONMENT,
         FeatureKey::ROUGH_GLASS | FeatureKey::ABSORPTION,
         FeatureKey::PBR | FeatureKey::ROUGH_GLASS | FeatureKey::ABSORPTION,
+        FeatureKey::PBR | FeatureKey::LAYERS,
+        FeatureKey::PBR | FeatureKey::ROUGH_GLASS | FeatureKey::LAYERS | FeatureKey::TEXTURES,
         FeatureKey::ALL & FeatureKey::ASSETS,
     ] {
         keys.extend(below_assets().filter(|&k| met.contains(k)).map(|k| k | assets));
@@ -87,6 +89,44 @@ fn every_split_composes_and_validates() {
         })
         .collect();
     assert!(failures.is_empty(), "{} variants fail, first: {}", failures.len(), failures[0]);
+}
+
+/// The BSDF probe (`crate::bsdf_probe`, the one [`DIAGNOSTIC`] program) composes and validates
+/// for every combination of the flags its key keeps (`NOT_READ`: the others are off); like
+/// the render programs it binds no uniform and at most WebGPU's 8 storage buffers, in group 0
+/// only the scene's.
+#[test]
+fn the_bsdf_probe_composes_and_validates_for_every_key() {
+    use crate::{MIN_STORAGE_BUFFERS, SCENE_BINDINGS, bsdf_probe::NOT_READ};
+    assert_eq!(DIAGNOSTIC, [BSDF_PROBE]);
+    let flags: Vec<FeatureKey> = (FeatureKey::ALL - NOT_READ).iter().collect();
+    let keys: Vec<FeatureKey> = (0..1u32 << flags.len())
+        .map(|set| {
+            flags.iter().enumerate().filter(|(i, _)| set >> i & 1 == 1).fold(FeatureKey::empty(), |k, (_, &f)| k | f)
+        })
+        .collect();
+    let failures: Vec<String> = keys
+        .iter()
+        .filter_map(|&key| {
+            let m = match compose_diagnostic(BSDF_PROBE, key) {
+                Ok(m) => m,
+                Err(e) => return Some(e.to_string()),
+            };
+            if let Err(e) = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), CAPABILITIES).validate(&m)
+            {
+                return Some(format!("{}: {:?}", key.label(), e.into_inner()));
+            }
+            let spaces: Vec<naga::AddressSpace> = m.global_variables.iter().map(|(_, g)| g.space).collect();
+            let storage = spaces.iter().filter(|s| matches!(s, naga::AddressSpace::Storage { .. })).count() as u32;
+            let scene = group_bindings(&m, 0);
+            let fits = storage <= MIN_STORAGE_BUFFERS
+                && !spaces.contains(&naga::AddressSpace::Uniform)
+                && scene.iter().all(|&b| b < SCENE_BINDINGS);
+            (!fits).then(|| format!("{}: {storage} storage buffers, group 0 {scene:?}", key.label()))
+        })
+        .collect();
+    assert!(flags.contains(&FeatureKey::PBR) && flags.contains(&FeatureKey::ROUGH_GLASS), "{flags:?}");
+    assert!(failures.is_empty(), "{} of {} keys fail, first: {}", failures.len(), keys.len(), failures[0]);
 }
 
 /// A split variant declares each part after the first at the binding the host binds it
@@ -182,7 +222,7 @@ fn asset_scenes(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
             "pbr.toml",
             format!(
                 "{head}[[materials]]\nname = \"m\"\ntype = \"pbr\"\nmetallic = 0.5\nroughness = 0.4\n\
-                 radiance = [0.5, 0.5, 0.5]\n{sphere}{light}"
+                 radiance = [0.5, 0.5, 0.5]\nclearcoat = 0.5\n{sphere}{light}"
             ),
         ),
         ("alpha.toml", format!("{head}[[objects]]\ntype = \"gltf\"\nfile = \"veil.gltf\"\n{light}")),
@@ -353,7 +393,15 @@ fn shared_constants_reach_the_composed_shaders_exactly() {
     // use them.
     let folded = |n: &str| {
         n.ends_with("WORKGROUP")
-            || ["GPU_STACK", "GGX_ALBEDO_LEN", "GGX_ROUGHNESS_STEPS", "DIELECTRIC_ETA_STEPS"].contains(&n)
+            || [
+                "GPU_STACK",
+                "GGX_ALBEDO_LEN",
+                "GGX_ROUGHNESS_STEPS",
+                "DIELECTRIC_ETA_STEPS",
+                "SHEEN_ALBEDO_LEN",
+                "SHEEN_ROUGHNESS_STEPS",
+            ]
+            .contains(&n)
     };
     let missing: Vec<_> = shared.keys().filter(|n| !seen.contains(**n) && !folded(n)).collect();
     assert!(missing.is_empty(), "not found as constants: {missing:?}");
@@ -425,9 +473,14 @@ fn wgsl_struct_layouts_equal_the_rust_structs() {
                 normal_scale,
                 alpha,
                 alpha_cutoff,
-                _pad,
+                clearcoat,
+                clearcoat_roughness,
                 absorption,
-                transmission
+                transmission,
+                spec_at_normal,
+                spec_at_grazing,
+                sheen_color,
+                sheen_roughness
             ]
         ),
         layout!("TextureInfo", FlatTexture, [width, height, offset, flags, linear, offset_uv, _pad]),

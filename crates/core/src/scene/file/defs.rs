@@ -74,6 +74,12 @@ pub(super) struct MaterialDef {
     pub(super) absorption: Option<SVec>,
     pub(super) transmission: Option<Spanned<f64>>,
     pub(super) single_scattering: Option<Spanned<bool>>,
+    pub(super) specular: Option<Spanned<f64>>,
+    pub(super) specular_color: Option<SVec>,
+    pub(super) clearcoat: Option<Spanned<f64>>,
+    pub(super) clearcoat_roughness: Option<Spanned<f64>>,
+    pub(super) sheen_color: Option<SVec>,
+    pub(super) sheen_roughness: Option<Spanned<f64>>,
 }
 
 /// Every key any object type has; which belong to which type is checked in `object`.

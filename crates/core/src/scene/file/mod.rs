@@ -170,6 +170,37 @@ mod tests {
         assert!(err(&src).starts_with("t.toml:11:8: materials[0].type: unknown material type"));
     }
 
+    /// A pbr material's clear coat, sheen and specular keys: values read, defaults, and bad
+    /// ones named.
+    #[test]
+    fn layer_keys() {
+        let src = format!(
+            "{HEAD}[[materials]]\nname = \"p\"\ntype = \"pbr\"\nclearcoat = 0.5\nclearcoat_roughness = 0.1\n\
+             sheen_color = [1, 0.5, 0]\nsheen_roughness = 0.3\nspecular = 0.7\nspecular_color = [2, 1, 1]\n\
+             [[materials]]\nname = \"q\"\ntype = \"pbr\"\n"
+        );
+        let s = parse_str(&src).unwrap();
+        let (p, q) = (&s.materials[0], &s.materials[1]);
+        assert_eq!((p.clearcoat, p.clearcoat_roughness, p.sheen_roughness, p.specular), (0.5, 0.1, 0.3, 0.7));
+        assert_eq!((p.sheen_color, p.specular_color), ([1.0, 0.5, 0.0], [2.0, 1.0, 1.0]));
+        assert_eq!((q.clearcoat, q.sheen_color, q.specular, q.specular_color), (0.0, [0.0; 3], 1.0, [1.0; 3]));
+        let material = |body: &str| err(&format!("{HEAD}[[materials]]\nname = \"m\"\n{body}\n"));
+        assert!(
+            material("type = \"pbr\"\nclearcoat = 1.5").contains("materials[0].clearcoat: must be in [0, 1], got 1.5")
+        );
+        assert!(
+            material("type = \"pbr\"\nsheen_color = [1, 2, 0]").contains("materials[0].sheen_color[1]: must be <= 1")
+        );
+        assert!(
+            material("type = \"pbr\"\nspecular_color = [1, -1, 0]")
+                .contains("materials[0].specular_color[1]: must be >= 0")
+        );
+        assert!(
+            material("type = \"diffuse\"\nsheen_roughness = 0.5")
+                .contains("materials[0].sheen_roughness: not a field of a diffuse")
+        );
+    }
+
     /// Glass and spot lights: values read, and bad ones named.
     #[test]
     fn glass_and_spot_keys() {
@@ -215,10 +246,15 @@ mod tests {
         );
         assert!(spot("outer_angle = 95").contains("lights[0].outer_angle: must be in [0, 90] degrees, got 95"));
         assert!(spot("range = 0").contains("lights[0].range: must be > 0, got 0"));
-        let e = err(&format!(
+        let point = parse_str(&format!(
             "{HEAD}[[lights]]\ntype = \"point\"\nposition = [0, 2, 0]\nintensity = [1, 1, 1]\nrange = 3\n"
+        ))
+        .unwrap();
+        assert!(matches!(point.lights[0], Light::Point { range: 3.0, .. }), "{:?}", point.lights[0]);
+        let e = err(&format!(
+            "{HEAD}[[lights]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\nrange = 3\n"
         ));
-        assert!(e.contains("lights[0].range: not a field of a point light"), "{e}");
+        assert!(e.contains("lights[0].range: not a field of a directional light"), "{e}");
     }
 
     #[test]

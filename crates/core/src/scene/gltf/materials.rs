@@ -99,12 +99,56 @@ impl Reader<'_> {
                         out.normal_scale = n.scale() as f64;
                         out.normal_texture = tex(self, Some(TextureUse::of_normal(&n)), "normalTexture", true)?;
                     }
+                    self.layers(&m, &at, &mut out);
                 }
             }
             self.out.materials.push(out);
         }
         self.out.materials.push(Material::default_grey());
         Ok(())
+    }
+
+    /// `KHR_materials_specular`, `KHR_materials_clearcoat` and `KHR_materials_sheen` of `m`
+    /// into `out`: their factors (the layers of [`crate::render::layers`]); their textures are
+    /// not read, which a warning names.
+    fn layers(&mut self, m: &gltf::Material, at: &str, out: &mut Material) {
+        if let Some(sp) = m.specular() {
+            out.specular = (sp.specular_factor() as f64).clamp(0.0, 1.0);
+            out.specular_color = sp.specular_color_factor().map(|c| (c as f64).max(0.0));
+            for (what, has) in [
+                ("specularTexture", sp.specular_texture().is_some()),
+                ("specularColorTexture", sp.specular_color_texture().is_some()),
+            ] {
+                self.unread_texture(at, "KHR_materials_specular", what, has);
+            }
+        }
+        let ext = |name: &str| m.extensions().and_then(|e| e.get(name)).and_then(|v| v.as_object());
+        let number = |o: &serde_json::Map<String, serde_json::Value>, key: &str, default: f64| {
+            o.get(key).and_then(|v| v.as_f64()).filter(|v| v.is_finite()).unwrap_or(default)
+        };
+        if let Some(c) = ext("KHR_materials_clearcoat") {
+            out.clearcoat = number(c, "clearcoatFactor", 0.0).clamp(0.0, 1.0);
+            out.clearcoat_roughness = number(c, "clearcoatRoughnessFactor", 0.0).clamp(0.0, 1.0);
+            for what in ["clearcoatTexture", "clearcoatRoughnessTexture", "clearcoatNormalTexture"] {
+                self.unread_texture(at, "KHR_materials_clearcoat", what, c.contains_key(what));
+            }
+        }
+        if let Some(sh) = ext("KHR_materials_sheen") {
+            let color = sh.get("sheenColorFactor").and_then(|v| v.as_array());
+            let channel = |i: usize| color.and_then(|a| a.get(i)).and_then(|v| v.as_f64()).unwrap_or(0.0);
+            out.sheen_color = [0, 1, 2].map(|i| channel(i).clamp(0.0, 1.0));
+            out.sheen_roughness = number(sh, "sheenRoughnessFactor", 0.0).clamp(0.0, 1.0);
+            for what in ["sheenColorTexture", "sheenRoughnessTexture"] {
+                self.unread_texture(at, "KHR_materials_sheen", what, sh.contains_key(what));
+            }
+        }
+    }
+
+    /// The warning that texture `what` of extension `ext` is not read (where `has`).
+    fn unread_texture(&mut self, at: &str, ext: &str, what: &str, has: bool) {
+        if has {
+            self.warn(format!("{at}: {ext}.{what} is not read: its factor holds everywhere"));
+        }
     }
 
     /// `KHR_materials_volume` as an absorption coefficient per unit length: −ln(attenuationColor)

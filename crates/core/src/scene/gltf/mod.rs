@@ -47,9 +47,12 @@ pub const MAX_BUFFER_BYTES: u64 = 2 << 30;
 /// Deepest node hierarchy followed.
 const MAX_NODE_DEPTH: usize = 1024;
 /// The extensions whose contents are read (the crate refuses files that require others).
-pub const SUPPORTED_EXTENSIONS: [&str; 8] = [
+pub const SUPPORTED_EXTENSIONS: [&str; 11] = [
     "KHR_mesh_quantization",
     "KHR_lights_punctual",
+    "KHR_materials_clearcoat",
+    "KHR_materials_sheen",
+    "KHR_materials_specular",
     "KHR_materials_emissive_strength",
     "KHR_materials_transmission",
     "KHR_materials_ior",

@@ -248,7 +248,8 @@ impl Reader<'_> {
             match light.kind() {
                 gltf::khr_lights_punctual::Kind::Point => {
                     let position = space.point(DVec3::ZERO);
-                    self.out.lights.push(Light::Point { position, intensity });
+                    let range = light.range().map_or(0.0, |r| r as f64).max(0.0);
+                    self.out.lights.push(Light::Point { position, intensity, range });
                 }
                 gltf::khr_lights_punctual::Kind::Directional => {
                     let d = space.point(DVec3::new(0.0, 0.0, -1.0)) - space.point(DVec3::ZERO);

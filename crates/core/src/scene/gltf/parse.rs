@@ -111,12 +111,14 @@ pub(super) fn validate(root: &gltf::json::Root) -> Res<()> {
         // does not know is an error only where it is used.
         let allowed_invalid = (p.starts_with("accessors[") && p.ends_with("].type"))
             || (p.contains("khrLightsPunctual.lights[") && p.ends_with("].type"));
-        // The crate's path reads `extensionsRequired[N] = "NAME"`.
-        let required_quantization = p.starts_with("extensionsRequired[") && p.ends_with("= \"KHR_mesh_quantization\"");
+        // The crate's path reads `extensionsRequired[N] = "NAME"`: the extensions strahl reads
+        // that the crate has no feature for (quantization, clear coat, sheen) may be required.
+        let required_read = p.starts_with("extensionsRequired[")
+            && SUPPORTED_EXTENSIONS.iter().any(|e| p.ends_with(&format!("= \"{e}\"")));
         let allowed = match error {
             Error::Missing => allowed_missing,
             Error::Invalid => allowed_invalid,
-            Error::Unsupported => required_quantization,
+            Error::Unsupported => required_read,
             _ => false,
         };
         if !allowed {

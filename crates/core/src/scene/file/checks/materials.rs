@@ -134,7 +134,7 @@ impl Cx<'_> {
         };
         // Keys only some kinds of material take, in the order they are checked.
         use MaterialKind::{Dielectric, Emissive, Mirror, Pbr};
-        let own_keys: [(&[MaterialKind], &str, _); 9] = [
+        let own_keys: [(&[MaterialKind], &str, _); 15] = [
             (&[Dielectric, Pbr], "ior", d.ior.as_ref().map(|v| v.span())),
             (&[Emissive, Pbr], "radiance", d.radiance.as_ref().map(|v| v.span())),
             (&[Emissive, Pbr], "two_sided", d.two_sided.as_ref().map(|v| v.span())),
@@ -144,6 +144,12 @@ impl Cx<'_> {
             (&[Dielectric, Pbr], "absorption", d.absorption.as_ref().map(|v| v.span())),
             (&[Pbr], "transmission", d.transmission.as_ref().map(|v| v.span())),
             (&[Dielectric, Pbr], "single_scattering", d.single_scattering.as_ref().map(|v| v.span())),
+            (&[Pbr], "specular", d.specular.as_ref().map(|v| v.span())),
+            (&[Pbr], "specular_color", d.specular_color.as_ref().map(|v| v.span())),
+            (&[Pbr], "clearcoat", d.clearcoat.as_ref().map(|v| v.span())),
+            (&[Pbr], "clearcoat_roughness", d.clearcoat_roughness.as_ref().map(|v| v.span())),
+            (&[Pbr], "sheen_color", d.sheen_color.as_ref().map(|v| v.span())),
+            (&[Pbr], "sheen_roughness", d.sheen_roughness.as_ref().map(|v| v.span())),
         ];
         for (owners, key, span) in own_keys {
             if !owners.contains(&kind)
@@ -232,6 +238,7 @@ impl Cx<'_> {
         }
         let two_sided = d.two_sided.as_ref().is_some_and(|v| *v.get_ref());
         let (absorption, transmission) = self.glass_keys(d, field)?;
+        let layers = self.layer_keys(d, field)?;
         Ok(Material {
             name: name.clone(),
             kind,
@@ -246,6 +253,37 @@ impl Cx<'_> {
             absorption,
             transmission,
             single_scattering: d.single_scattering.as_ref().is_some_and(|v| *v.get_ref()),
+            ..layers
+        })
+    }
+
+    /// A pbr material's specular and layer keys (glTF's `KHR_materials_specular`,
+    /// `_clearcoat` and `_sheen`), each factor and the sheen colour in [0, 1], on the default
+    /// grey material.
+    fn layer_keys(&self, d: &MaterialDef, field: &str) -> Res<Material> {
+        let unit = |v: &Option<Spanned<f64>>, key: &str, default: f64| -> Res<f64> {
+            let Some(v) = v else { return Ok(default) };
+            let x = self.number(v, &format!("{field}.{key}"))?;
+            if !(0.0..=1.0).contains(&x) {
+                return Err(self.at(v.span(), format!("{field}.{key}"), format!("must be in [0, 1], got {x}")));
+            }
+            Ok(x)
+        };
+        // (A specular colour may exceed 1: it multiplies the index's F0, and the product is
+        // clamped to 1.)
+        let color = |v: &Option<SVec>, key: &str, default: [f64; 3], max: Option<f64>| -> Res<[f64; 3]> {
+            match v {
+                Some(c) => self.rgb(c, &format!("{field}.{key}"), max),
+                None => Ok(default),
+            }
+        };
+        Ok(Material {
+            specular: unit(&d.specular, "specular", 1.0)?,
+            specular_color: color(&d.specular_color, "specular_color", [1.0; 3], None)?,
+            clearcoat: unit(&d.clearcoat, "clearcoat", 0.0)?,
+            clearcoat_roughness: unit(&d.clearcoat_roughness, "clearcoat_roughness", 0.0)?,
+            sheen_color: color(&d.sheen_color, "sheen_color", [0.0; 3], Some(1.0))?,
+            sheen_roughness: unit(&d.sheen_roughness, "sheen_roughness", 0.0)?,
             ..Material::default_grey()
         })
     }

@@ -285,13 +285,26 @@ impl Cx<'_> {
             for (key, span) in [
                 ("inner_angle", d.inner_angle.as_ref().map(|v| v.span())),
                 ("outer_angle", d.outer_angle.as_ref().map(|v| v.span())),
-                ("range", d.range.as_ref().map(|v| v.span())),
             ] {
                 if let Some(span) = span {
                     return Err(not_a_field(key, span));
                 }
             }
         }
+        if tname == "directional"
+            && let Some(v) = &d.range
+        {
+            return Err(not_a_field("range", v.span()));
+        }
+        // A point or spot light's reach (KHR_lights_punctual's `range`; 0: unlimited).
+        let range = || -> Res<f64> {
+            let Some(v) = &d.range else { return Ok(0.0) };
+            let range = self.number(v, &format!("{field}.range"))?;
+            if !(range > 0.0) {
+                return Err(self.at(v.span(), format!("{field}.range"), format!("must be > 0, got {range}")));
+            }
+            Ok(range)
+        };
         match tname {
             "spot" => {
                 let position = self.vec3(&require(&d.position, "position")?, &format!("{field}.position"))?;
@@ -319,20 +332,13 @@ impl Cx<'_> {
                         format!("must be less than outer_angle ({outer}), got {inner}"),
                     ));
                 }
-                let mut range = 0.0;
-                if let Some(v) = &d.range {
-                    range = self.number(v, &format!("{field}.range"))?;
-                    if !(range > 0.0) {
-                        return Err(self.at(v.span(), format!("{field}.range"), format!("must be > 0, got {range}")));
-                    }
-                }
                 Ok(Light::Spot {
                     position,
                     direction,
                     intensity: intensity(self)?,
                     inner: inner.to_radians(),
                     outer: outer.to_radians(),
-                    range,
+                    range: range()?,
                 })
             }
             "point" => {
@@ -340,7 +346,7 @@ impl Cx<'_> {
                     return Err(not_a_field("direction", v.span()));
                 }
                 let position = self.vec3(&require(&d.position, "position")?, &format!("{field}.position"))?;
-                Ok(Light::Point { position, intensity: intensity(self)? })
+                Ok(Light::Point { position, intensity: intensity(self)?, range: range()? })
             }
             "directional" => {
                 if let Some(v) = &d.position {
