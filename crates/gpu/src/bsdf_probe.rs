@@ -155,21 +155,13 @@ impl BsdfProbe {
         })?;
         let scene_layout = ctx.scene_layout(&scene_bindings);
         let pipeline = |entry: &'static str| {
-            let pipeline = ctx.scoped(&format!("the pipeline of {what}, {entry}"), || {
-                let layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some(entry),
-                    bind_group_layouts: &[Some(&scene_layout), Some(&io_layout)],
-                    immediate_size: 0,
-                });
-                ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry),
-                    layout: Some(&layout),
-                    module: &shader,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            })?;
+            let pipeline = ctx.compute_pipeline(
+                &format!("the pipeline of {what}, {entry}"),
+                &shader,
+                entry,
+                &scene_layout,
+                &io_layout,
+            )?;
             Ok::<_, GpuError>(CachedPipeline {
                 pipeline,
                 key,

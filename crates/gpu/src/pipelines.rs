@@ -118,22 +118,36 @@ impl GpuContext {
             Program::Wavefront => &self.wavefront_layout,
         };
         let scene_layout = self.scene_layout(&scene_bindings);
-        let pipeline = self.scoped(&format!("the pipeline of {what}"), || {
+        let pipeline =
+            self.compute_pipeline(&format!("the pipeline of {what}"), &shader, entry, &scene_layout, io_layout)?;
+        Ok(CachedPipeline { pipeline, key, compile_time: start.elapsed(), scene_bindings })
+    }
+
+    /// The compute pipeline of `entry` in `shader` over the scene's bind group (`scene_layout`,
+    /// group 0) and its program's (`io_layout`, group 1), in an error scope named `what`.
+    pub(crate) fn compute_pipeline(
+        &self,
+        what: &str,
+        shader: &wgpu::ShaderModule,
+        entry: &'static str,
+        scene_layout: &wgpu::BindGroupLayout,
+        io_layout: &wgpu::BindGroupLayout,
+    ) -> Result<wgpu::ComputePipeline, GpuError> {
+        self.scoped(what, || {
             let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some(entry),
-                bind_group_layouts: &[Some(&scene_layout), Some(io_layout)],
+                bind_group_layouts: &[Some(scene_layout), Some(io_layout)],
                 immediate_size: 0,
             });
             self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
                 layout: Some(&layout),
-                module: &shader,
+                module: shader,
                 entry_point: Some(entry),
                 compilation_options: Default::default(),
                 cache: None,
             })
-        })?;
-        Ok(CachedPipeline { pipeline, key, compile_time: start.elapsed(), scene_bindings })
+        })
     }
 
     /// The layout of group 0 with `bindings`, read-only storage buffers all (binding 0, the
